@@ -1,0 +1,17 @@
+//! hocurve: valid high-order curved triangle and tetrahedral meshes by the
+//! solid-mechanics analogy of Poya, Sevilla & Gil (Comput. Mech. 2016).
+//!
+//! The chain, each module knowing only the ones before it:
+//! `reference` → `quadrature` → `mapping` → `mesh` → `geometry` → `material`
+//! → `quality` → `assembly` → `solver` → `curve`; `io`, `ffi` and the CLI sit
+//! at the edges.
+
+pub mod error;
+pub mod reference;
+pub mod quadrature;
+pub mod geometry;
+pub mod mesh;
+pub mod cases;
+pub mod io;
+
+pub use error::{Error, Result};
