@@ -15,3 +15,11 @@ pub mod cases;
 pub mod io;
 
 pub use error::{Error, Result};
+pub mod mapping;
+pub mod material;
+pub mod solver;
+pub mod quality;
+pub mod assembly;
+pub mod curve;
+
+pub use curve::{curve, CurveOptions, CurveReport, CurvedMesh, Formulation};

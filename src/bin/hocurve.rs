@@ -1,1 +1,410 @@
-fn main() {}
+//! `hocurve`: curve linear gmsh meshes, run the built-in demo, measure quality.
+//!
+//! ```text
+//! hocurve demo [--order P] [--output-dir DIR]
+//! hocurve curve IN.msh --order P --geometry TAG=SHAPE ... [--formulation F] [--material M]
+//!               [--young E] [--poisson NU] [--increments N] [--spacing optimal|equispaced]
+//!               --output OUT.msh|OUT.vtu [--report R.json]
+//! hocurve quality MESH.msh [--report R.json]
+//! ```
+//! Arguments are parsed by hand: the grammar is small and a parser crate
+//! would double the build time of the binary for little gain.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use hocurve::cases;
+use hocurve::curve::{curve, CurveOptions, CurvedMesh, Formulation, Progress, Stage};
+use hocurve::geometry::shapes::{Shape, ShapeProjector};
+use hocurve::io::{self, CellMeshView};
+use hocurve::mapping::ElementCache;
+use hocurve::mesh::LinearMesh;
+use hocurve::quadrature::simplex_rule;
+use hocurve::quality::{self, MeshQuality};
+use hocurve::reference::{ordering, LagrangeBasis, NodeSet, NodeSpacing};
+use hocurve::{Error, Result};
+
+const USAGE: &str = "\
+hocurve — valid high-order curved meshes by a solid-mechanics analogy
+
+USAGE:
+  hocurve demo [--order P] [--output-dir DIR]
+      Curve two built-in cases (a 2D cylinder in a channel with a stretched
+      boundary layer, and a 3D spherical cavity in a box) and write
+      DIR/demo-2d.vtu, DIR/demo-3d.vtu and DIR/demo-report.json.
+
+  hocurve curve IN.msh --order P --geometry TAG=SHAPE [--geometry TAG=SHAPE ...]
+                --output OUT.msh|OUT.vtu [--report R.json]
+                [--formulation linear|ile] [--material linear]
+                [--young E] [--poisson NU] [--increments N]
+                [--spacing optimal|equispaced]
+      Curve a linear gmsh (.msh 4.1) mesh. TAG is the elementary entity tag of
+      the boundary facets (or 3D feature curves) that lie on SHAPE:
+        sphere:cx,cy,cz,r        circle:cx,cy,r (2D)     circle3:cx,cy,cz,nx,ny,nz,r
+        cylinder:px,py,pz,ax,ay,az,r      torus:cx,cy,cz,R,r | torus:cx,cy,cz,ax,ay,az,R,r
+        plane:px,py,pz,nx,ny,nz  line:px,py,pz,dx,dy,dz  naca4:DDDD,chord,x0,y0
+      Boundary facets whose tag has no shape stay straight.
+
+  hocurve quality MESH.msh [--report R.json]
+      Measure Q1, Q2, Q3 of any high-order gmsh mesh.
+";
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let result = match args.first().map(String::as_str) {
+        Some("demo") => cmd_demo(&args[1..]),
+        Some("curve") => cmd_curve(&args[1..]),
+        Some("quality") => cmd_quality(&args[1..]),
+        Some("-h") | Some("--help") | Some("help") | None => {
+            print!("{USAGE}");
+            return ExitCode::SUCCESS;
+        }
+        Some("--version") => {
+            println!("hocurve {}", env!("CARGO_PKG_VERSION"));
+            return ExitCode::SUCCESS;
+        }
+        Some(other) => Err(Error::InvalidInput(format!("unknown command '{other}'; see hocurve --help"))),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("hocurve: error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Parsed `--flag value` pairs plus positionals.
+struct Args {
+    positional: Vec<String>,
+    flags: Vec<(String, String)>,
+}
+
+impl Args {
+    fn parse(args: &[String], known: &[&str]) -> Result<Args> {
+        let mut positional = Vec::new();
+        let mut flags = Vec::new();
+        let mut it = args.iter();
+        while let Some(a) = it.next() {
+            if let Some(name) = a.strip_prefix("--") {
+                if !known.contains(&name) {
+                    return Err(Error::InvalidInput(format!("unknown option --{name}")));
+                }
+                let v = it
+                    .next()
+                    .ok_or_else(|| Error::InvalidInput(format!("option --{name} needs a value")))?;
+                flags.push((name.to_string(), v.clone()));
+            } else {
+                positional.push(a.clone());
+            }
+        }
+        Ok(Args { positional, flags })
+    }
+    fn get(&self, name: &str) -> Option<&str> {
+        self.flags.iter().rev().find(|(n, _)| n == name).map(|(_, v)| v.as_str())
+    }
+    fn all(&self, name: &str) -> impl Iterator<Item = &str> {
+        self.flags.iter().filter(move |(n, _)| n == name).map(|(_, v)| v.as_str())
+    }
+    fn number<T: std::str::FromStr>(&self, name: &str, default: T) -> Result<T> {
+        match self.get(name) {
+            None => Ok(default),
+            Some(v) => v
+                .parse()
+                .map_err(|_| Error::InvalidInput(format!("--{name}: '{v}' is not a valid number"))),
+        }
+    }
+}
+
+fn options_from(args: &Args, default_order: usize) -> Result<CurveOptions> {
+    let mut o = CurveOptions { order: args.number("order", default_order)?, ..Default::default() };
+    if let Some(f) = args.get("formulation") {
+        o.formulation = Formulation::parse(f)?;
+    }
+    match args.get("material") {
+        None | Some("linear") => {}
+        Some(m @ ("neo-hookean" | "mooney-rivlin" | "ni-mooney-rivlin" | "transversely-isotropic"
+        | "transversely-isotropic-linear")) => {
+            return Err(Error::InvalidInput(format!("material '{m}' is not implemented yet (available: linear)")))
+        }
+        Some(m) => return Err(Error::InvalidInput(format!("unknown material '{m}'"))),
+    }
+    o.young = args.number("young", o.young)?;
+    o.poisson = args.number("poisson", o.poisson)?;
+    o.increments = args.number("increments", o.increments)?;
+    o.spacing = match args.get("spacing") {
+        None | Some("optimal") => NodeSpacing::Optimal,
+        Some("equispaced") => NodeSpacing::Equispaced,
+        Some(s) => return Err(Error::InvalidInput(format!("unknown spacing '{s}' (optimal or equispaced)"))),
+    };
+    hocurve::curve::validate_options(&o)?;
+    Ok(o)
+}
+
+/// Progress on stderr, one line per stage and increment.
+fn progress_printer(label: String) -> impl FnMut(&Progress) -> bool {
+    move |p: &Progress| {
+        let msg = match p.stage {
+            Stage::Elevate => "elevating and numbering".to_string(),
+            Stage::Project => "projecting boundary nodes".to_string(),
+            Stage::Increment => format!("increment {}/{}", p.step + 1, p.total),
+            Stage::Quality => "measuring quality".to_string(),
+        };
+        eprintln!("[{label}] {msg}");
+        true
+    }
+}
+
+fn run_case(
+    label: &str,
+    mesh: &LinearMesh,
+    projector: &ShapeProjector,
+    opts: &CurveOptions,
+) -> Result<CurvedMesh> {
+    let mut progress = progress_printer(label.to_string());
+    let c = curve(mesh, projector, opts, &mut progress)?;
+    let r = &c.report;
+    eprintln!(
+        "[{label}] p={} nodes={} dofs={} min Q3={:.4} mean Q3={:.4} invalid={} ({:.2} s)",
+        r.order, r.nodes, r.dofs, r.quality.min_q3, r.quality.mean_q3, r.quality.n_invalid, r.timings.total
+    );
+    if r.quality.n_invalid > 0 {
+        eprintln!(
+            "[{label}] WARNING: {} invalid element(s) (worst cell {}); try more --increments or another --poisson",
+            r.quality.n_invalid, r.quality.worst_cell
+        );
+    }
+    Ok(c)
+}
+
+fn cmd_demo(argv: &[String]) -> Result<()> {
+    let args = Args::parse(argv, &["order", "output-dir", "increments", "poisson"])?;
+    let dir = PathBuf::from(args.get("output-dir").unwrap_or("."));
+    std::fs::create_dir_all(&dir).map_err(|e| Error::Io(format!("cannot create {}: {e}", dir.display())))?;
+    let opts = options_from(&args, 4)?;
+    let c2 = cases::cylinder_channel_2d(48, 8, 100.0);
+    let c3 = cases::sphere_in_box_3d(3, 3);
+    let mut reports = Vec::new();
+    for (case, file) in [(&c2, "demo-2d.vtu"), (&c3, "demo-3d.vtu")] {
+        eprintln!("[{}] {}", case.name, case.description);
+        let curved = run_case(&case.name, &case.mesh, &case.projector, &opts)?;
+        let path = dir.join(file);
+        write_mesh(&path, &curved)?;
+        eprintln!("[{}] wrote {}", case.name, path.display());
+        reports.push((case.name.clone(), report_json(&curved, &opts, Some(&path))));
+    }
+    let path = dir.join("demo-report.json");
+    let body = format!(
+        "{{\n{}\n}}\n",
+        reports.iter().map(|(n, r)| format!("  \"{}\": {}", json_escape(n), indent(r))).collect::<Vec<_>>().join(",\n")
+    );
+    write_text_atomic(&path, &body)?;
+    eprintln!("wrote {}", path.display());
+    Ok(())
+}
+
+fn cmd_curve(argv: &[String]) -> Result<()> {
+    let args = Args::parse(
+        argv,
+        &["order", "geometry", "formulation", "material", "young", "poisson", "increments", "spacing", "output", "report"],
+    )?;
+    let input = match args.positional.as_slice() {
+        [one] => PathBuf::from(one),
+        [] => return Err(Error::InvalidInput("curve needs an input .msh file".into())),
+        more => return Err(Error::InvalidInput(format!("curve takes one input file, got {}", more.len()))),
+    };
+    let output = PathBuf::from(
+        args.get("output").ok_or_else(|| Error::InvalidInput("curve needs --output OUT.msh|OUT.vtu".into()))?,
+    );
+    check_extension(&output)?;
+    if args.get("order").is_none() {
+        return Err(Error::InvalidInput("curve needs --order P".into()));
+    }
+    let opts = options_from(&args, 2)?;
+    let mut projector = ShapeProjector::new();
+    for g in args.all("geometry") {
+        let (tag, shape) = g
+            .split_once('=')
+            .ok_or_else(|| Error::InvalidInput(format!("--geometry '{g}': expected TAG=SHAPE")))?;
+        let tag: i32 = tag
+            .trim()
+            .parse()
+            .map_err(|_| Error::InvalidInput(format!("--geometry '{g}': '{tag}' is not an integer tag")))?;
+        projector.insert(tag, Shape::parse(shape)?);
+    }
+    let msh = io::gmsh::read_msh(&input)?;
+    let mut mesh = io::gmsh::to_linear_mesh(&msh)?;
+    keep_mapped_tags(&mut mesh, &projector);
+    let curved = run_case(&input.display().to_string(), &mesh, &projector, &opts)?;
+    write_mesh(&output, &curved)?;
+    eprintln!("wrote {}", output.display());
+    if let Some(r) = args.get("report") {
+        write_text_atomic(Path::new(r), &(report_json(&curved, &opts, Some(&output)) + "\n"))?;
+        eprintln!("wrote {r}");
+    }
+    Ok(())
+}
+
+/// Facets and feature edges whose tag has no shape stay straight: drop their tags.
+fn keep_mapped_tags(mesh: &mut LinearMesh, projector: &ShapeProjector) {
+    let d = mesh.dim;
+    let (mut facets, mut tags) = (Vec::new(), Vec::new());
+    for (f, &t) in mesh.facets.chunks_exact(d).zip(&mesh.facet_tags) {
+        if projector.get(d - 1, t).is_some() {
+            facets.extend_from_slice(f);
+            tags.push(t);
+        }
+    }
+    mesh.facets = facets;
+    mesh.facet_tags = tags;
+    let (mut edges, mut etags) = (Vec::new(), Vec::new());
+    for (e, &t) in mesh.feature_edges.chunks_exact(2).zip(&mesh.feature_edge_tags) {
+        if projector.get(1, t).is_some() {
+            edges.extend_from_slice(e);
+            etags.push(t);
+        }
+    }
+    mesh.feature_edges = edges;
+    mesh.feature_edge_tags = etags;
+}
+
+fn cmd_quality(argv: &[String]) -> Result<()> {
+    let args = Args::parse(argv, &["report"])?;
+    let input = match args.positional.as_slice() {
+        [one] => PathBuf::from(one),
+        _ => return Err(Error::InvalidInput("quality needs exactly one .msh file".into())),
+    };
+    let msh = io::gmsh::read_msh(&input)?;
+    let (simplex, order, coords, gmsh_cells) = io::gmsh::high_order_cells(&msh)?;
+    // gmsh's Lagrange elements interpolate at equispaced reference nodes.
+    let nodes = NodeSet::new(simplex, order, NodeSpacing::Equispaced);
+    let perm = ordering::permutation(&ordering::gmsh_multi_indices(simplex, order), &nodes.multi)
+        .ok_or_else(|| Error::Io("internal: gmsh ordering does not match the node set".into()))?;
+    let npc = nodes.len();
+    let cells: Vec<usize> = gmsh_cells.chunks_exact(npc).flat_map(|c| perm.iter().map(move |&k| c[k])).collect();
+    let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(simplex, 2 * order));
+    let q = quality::summarize(&quality::cell_qualities(&cache, &coords, &cells));
+    let body = format!(
+        "{{\n  \"file\": \"{}\",\n  \"order\": {order},\n  \"cells\": {},\n  \"nodes\": {},\n{}\n}}",
+        json_escape(&input.display().to_string()),
+        cells.len() / npc,
+        coords.len() / simplex.dim(),
+        quality_json(&q)
+    );
+    println!("{body}");
+    if let Some(r) = args.get("report") {
+        write_text_atomic(Path::new(r), &(body + "\n"))?;
+    }
+    Ok(())
+}
+
+fn check_extension(path: &Path) -> Result<()> {
+    match path.extension().and_then(|e| e.to_str()) {
+        Some("msh") | Some("vtu") => Ok(()),
+        _ => Err(Error::InvalidInput(format!("output '{}' must end in .msh or .vtu", path.display()))),
+    }
+}
+
+/// Write the curved mesh; nodes are moved to equispaced reference positions,
+/// the convention of gmsh and VTK Lagrange cells.
+fn write_mesh(path: &Path, curved: &CurvedMesh) -> Result<()> {
+    check_extension(path)?;
+    let m = &curved.mesh;
+    let native = NodeSet::new(m.simplex, m.order, m.spacing);
+    let equi = NodeSet::new(m.simplex, m.order, NodeSpacing::Equispaced);
+    let coords = if m.spacing == NodeSpacing::Equispaced {
+        m.coords.clone()
+    } else {
+        m.coords_at_nodes(&LagrangeBasis::new(&native), &equi)
+    };
+    let view = CellMeshView { simplex: m.simplex, order: m.order, coords: &coords, cells: &m.cells, cell_multi: &equi.multi };
+    if path.extension().and_then(|e| e.to_str()) == Some("vtu") {
+        let q3: Vec<f64> = curved.cell_quality.iter().map(|q| q.q3).collect();
+        let q1: Vec<f64> = curved.cell_quality.iter().map(|q| q.q1).collect();
+        io::vtk::write_vtu(path, &view, &[], &[("Q3", &q3), ("Q1", &q1)])
+    } else {
+        io::gmsh::write_msh(path, &view)
+    }
+}
+
+fn write_text_atomic(path: &Path, text: &str) -> Result<()> {
+    let tmp = path.with_extension("tmp");
+    let res = std::fs::File::create(&tmp)
+        .and_then(|mut f| f.write_all(text.as_bytes()).and_then(|_| f.sync_all()))
+        .and_then(|_| std::fs::rename(&tmp, path));
+    res.map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        Error::Io(format!("cannot write {}: {e}", path.display()))
+    })
+}
+
+fn json_escape(s: &str) -> String {
+    let mut o = String::new();
+    for c in s.chars() {
+        match c {
+            '"' => o.push_str("\\\""),
+            '\\' => o.push_str("\\\\"),
+            c if (c as u32) < 0x20 => o.push_str(&format!("\\u{:04x}", c as u32)),
+            c => o.push(c),
+        }
+    }
+    o
+}
+
+fn num(x: f64) -> String {
+    if x.is_finite() {
+        format!("{x}")
+    } else {
+        "null".into()
+    }
+}
+
+fn quality_json(q: &MeshQuality) -> String {
+    format!(
+        "  \"min_q1\": {},\n  \"min_q2\": {},\n  \"min_q3\": {},\n  \"mean_q3\": {},\n  \"invalid_elements\": {},\n  \
+         \"worst_cell\": {},\n  \"q3_histogram\": {:?}",
+        num(q.min_q1),
+        num(q.min_q2),
+        num(q.min_q3),
+        num(q.mean_q3),
+        q.n_invalid,
+        q.worst_cell,
+        q.histogram
+    )
+}
+
+fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> String {
+    let r = &c.report;
+    let t = &r.timings;
+    format!(
+        "{{\n  \"order\": {},\n  \"formulation\": \"{}\",\n  \"material\": \"linear\",\n  \"young\": {},\n  \
+         \"poisson\": {},\n  \"increments\": {},\n  \"spacing\": \"{}\",\n  \"nodes\": {},\n  \"dofs\": {},\n  \
+         \"cells\": {},\n  \"projected_nodes\": {},\n  \"max_projection_distance\": {},\n{},\n  \
+         \"seconds\": {{\"total\": {}, \"elevate\": {}, \"project\": {}, \"assembly\": {}, \"solve\": {}, \"quality\": {}}},\n  \
+         \"output\": {}\n}}",
+        r.order,
+        r.formulation.name(),
+        num(r.young),
+        num(r.poisson),
+        r.increments,
+        if opts.spacing == NodeSpacing::Optimal { "optimal" } else { "equispaced" },
+        r.nodes,
+        r.dofs,
+        r.cells,
+        r.projected_nodes,
+        num(r.max_projection_distance),
+        quality_json(&r.quality),
+        num(t.total),
+        num(t.elevate),
+        num(t.project),
+        num(t.assembly),
+        num(t.solve),
+        num(t.quality),
+        output.map(|p| format!("\"{}\"", json_escape(&p.display().to_string()))).unwrap_or("null".into())
+    )
+}
+
+fn indent(s: &str) -> String {
+    s.replace('\n', "\n  ")
+}

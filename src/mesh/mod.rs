@@ -3,4 +3,9 @@
 
 pub mod linear;
 
+pub mod high_order;
+pub mod topology;
+
+pub use high_order::{HighOrderMesh, NodeConstraint};
 pub use linear::LinearMesh;
+pub use topology::{validate_and_orient, Topology};

@@ -1,0 +1,2 @@
+pub mod simplex;
+pub use simplex::Simplex;

@@ -1,0 +1,183 @@
+//! Element kernels (local) and the sparse scatter (global).
+//!
+//! The sparsity pattern of the reduced system K_ff (free degrees of freedom
+//! only, lower triangle) is built once per mesh in [`DofMap::pattern`] and
+//! reused by every assembly. Dirichlet conditions are applied by elimination:
+//! the coupling K_fd u_d goes to the right-hand side as the elements are
+//! visited, so K_fd is never stored.
+//!
+//! Assembly runs over cells in parallel (rayon); each element matrix is
+//! computed in a thread-local buffer and added to the global values with
+//! lock-free atomic additions.
+
+mod kernel;
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use rayon::prelude::*;
+
+pub use kernel::{KernelWorkspace, LinearElasticKernel};
+
+use crate::mesh::{HighOrderMesh, NodeConstraint};
+use crate::solver::SymmetricCsc;
+use crate::{Error, Result};
+
+/// Numbering of the degrees of freedom: dof = node · dim + component; the
+/// free ones are numbered in dof order.
+#[derive(Debug, Clone)]
+pub struct DofMap {
+    pub dim: usize,
+    /// `free[dof]` = index in the reduced system, or `usize::MAX` if prescribed.
+    pub free: Vec<usize>,
+    pub n_free: usize,
+}
+
+impl DofMap {
+    /// Every boundary node (fixed or on an entity) is prescribed.
+    pub fn new(mesh: &HighOrderMesh) -> DofMap {
+        let dim = mesh.dim();
+        let mut free = vec![usize::MAX; mesh.n_nodes() * dim];
+        let mut n_free = 0;
+        for (n, c) in mesh.constraint.iter().enumerate() {
+            if *c == NodeConstraint::Free {
+                for d in 0..dim {
+                    free[n * dim + d] = n_free;
+                    n_free += 1;
+                }
+            }
+        }
+        DofMap { dim, free, n_free }
+    }
+
+    /// Lower-triangular CSC pattern of K_ff: (r, c) is present when the nodes
+    /// of dofs r and c share a cell. Built in O(cells · nodes_per_cell²).
+    pub fn pattern(&self, mesh: &HighOrderMesh) -> SymmetricCsc {
+        let n_nodes = mesh.n_nodes();
+        let npc = mesh.nodes_per_cell();
+        // node → cells (CSR)
+        let mut start = vec![0usize; n_nodes + 1];
+        for &n in &mesh.cells {
+            start[n + 1] += 1;
+        }
+        for i in 0..n_nodes {
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut node_cells = vec![0usize; mesh.cells.len()];
+        for (k, &n) in mesh.cells.iter().enumerate() {
+            node_cells[fill[n]] = k / npc;
+            fill[n] += 1;
+        }
+        let dim = self.dim;
+        // Per free node: sorted neighbour nodes with index ≥ itself.
+        let columns: Vec<Vec<usize>> = (0..n_nodes)
+            .into_par_iter()
+            .map(|n| {
+                if self.free[n * dim] == usize::MAX {
+                    return Vec::new();
+                }
+                let mut nb: Vec<usize> = node_cells[start[n]..start[n + 1]]
+                    .iter()
+                    .flat_map(|&c| mesh.cell(c).iter().copied())
+                    .filter(|&m| m >= n && self.free[m * dim] != usize::MAX)
+                    .collect();
+                nb.sort_unstable();
+                nb.dedup();
+                nb
+            })
+            .collect();
+        let mut col_ptr = Vec::with_capacity(self.n_free + 1);
+        col_ptr.push(0);
+        let mut row_idx = Vec::new();
+        for (n, nb) in columns.iter().enumerate() {
+            if nb.is_empty() {
+                continue;
+            }
+            for c in 0..dim {
+                for &m in nb {
+                    let d0 = if m == n { c } else { 0 };
+                    for d in d0..dim {
+                        row_idx.push(self.free[m * dim + d]);
+                    }
+                }
+                col_ptr.push(row_idx.len());
+            }
+        }
+        SymmetricCsc { n: self.n_free, col_ptr, row_idx }
+    }
+}
+
+fn atomic_add(slot: &AtomicU64, v: f64) {
+    let mut cur = slot.load(Ordering::Relaxed);
+    loop {
+        let new = (f64::from_bits(cur) + v).to_bits();
+        match slot.compare_exchange_weak(cur, new, Ordering::Relaxed, Ordering::Relaxed) {
+            Ok(_) => return,
+            Err(c) => cur = c,
+        }
+    }
+}
+
+/// Assemble K_ff (values on `pattern`) and the right-hand side
+/// b_f = −K_fd u_d for the linear-elastic operator on the geometry `coords`.
+///
+/// `prescribed[dof]` is the Dirichlet value of each prescribed dof (ignored for
+/// free dofs). Fails if an element has a non-positive Jacobian somewhere.
+pub fn assemble_linear_elastic(
+    mesh: &HighOrderMesh,
+    coords: &[f64],
+    dofs: &DofMap,
+    pattern: &SymmetricCsc,
+    kernel: &LinearElasticKernel,
+    prescribed: &[f64],
+) -> Result<(Vec<f64>, Vec<f64>)> {
+    let dim = mesh.dim();
+    let npc = mesh.nodes_per_cell();
+    let ndof_e = npc * dim;
+    let values: Vec<AtomicU64> = (0..pattern.nnz()).map(|_| AtomicU64::new(0)).collect();
+    let rhs: Vec<AtomicU64> = (0..dofs.n_free).map(|_| AtomicU64::new(0)).collect();
+    (0..mesh.n_cells())
+        .into_par_iter()
+        .try_for_each_init(
+            || (vec![0.0; ndof_e * ndof_e], vec![0.0; ndof_e], kernel.workspace()),
+            |(ke, xe, ws), c| -> Result<()> {
+                let cell = mesh.cell(c);
+                for (a, &n) in cell.iter().enumerate() {
+                    xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
+                }
+                kernel
+                    .stiffness_into(xe, ke, ws)
+                    .map_err(|q| Error::InvalidElement(format!("cell {c} has a non-positive Jacobian ({q:.3e})")))?;
+                for (ra, &na) in cell.iter().enumerate() {
+                    for i in 0..dim {
+                        let r = dofs.free[na * dim + i];
+                        if r == usize::MAX {
+                            continue;
+                        }
+                        let row = &ke[(ra * dim + i) * ndof_e..(ra * dim + i + 1) * ndof_e];
+                        let mut b = 0.0;
+                        for (cb, &nb) in cell.iter().enumerate() {
+                            for j in 0..dim {
+                                let dof = nb * dim + j;
+                                let s = dofs.free[dof];
+                                let k = row[cb * dim + j];
+                                if s == usize::MAX {
+                                    b -= k * prescribed[dof];
+                                } else if r >= s {
+                                    let pos = pattern.position(r, s).expect("pattern covers every cell coupling");
+                                    atomic_add(&values[pos], k);
+                                }
+                            }
+                        }
+                        if b != 0.0 {
+                            atomic_add(&rhs[r], b);
+                        }
+                    }
+                }
+                Ok(())
+            },
+        )?;
+    let values = values.into_iter().map(|v| f64::from_bits(v.into_inner())).collect();
+    let rhs = rhs.into_iter().map(|v| f64::from_bits(v.into_inner())).collect();
+    Ok((values, rhs))
+}

@@ -1,0 +1,356 @@
+//! The one orchestrator: elevate, project, solve in load increments, measure.
+//!
+//! [`curve`] takes a linear mesh and a projector and returns a new curved
+//! mesh; the input is never modified, so a failed run leaves nothing
+//! half-curved.
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use crate::assembly::{assemble_linear_elastic, DofMap, LinearElasticKernel};
+use crate::geometry::Projector;
+use crate::mapping::ElementCache;
+use crate::material::LinearElastic;
+use crate::mesh::{validate_and_orient, HighOrderMesh, LinearMesh, NodeConstraint, Topology};
+use crate::quadrature::simplex_rule;
+use crate::quality::{self, ElementQuality, MeshQuality};
+use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
+use crate::solver::SparseCholesky;
+use crate::{Error, Result};
+
+/// The solid-mechanics formulation (paper Table 1).
+#[non_exhaustive]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Formulation {
+    /// Classical linear elasticity: one solve on the straight mesh.
+    Linear,
+    /// Incremental linear elasticity: n solves, each on the updated geometry.
+    Ile,
+}
+
+impl Formulation {
+    pub fn name(self) -> &'static str {
+        match self {
+            Formulation::Linear => "linear",
+            Formulation::Ile => "ile",
+        }
+    }
+    pub fn parse(s: &str) -> Result<Formulation> {
+        match s.to_ascii_lowercase().as_str() {
+            "linear" => Ok(Formulation::Linear),
+            "ile" => Ok(Formulation::Ile),
+            "iil" | "cil" | "nonlinear" => Err(Error::InvalidInput(format!(
+                "formulation '{s}' is not implemented yet (available: linear, ile)"
+            ))),
+            _ => Err(Error::InvalidInput(format!(
+                "unknown formulation '{s}' (expected linear, ile, iil, cil or nonlinear)"
+            ))),
+        }
+    }
+}
+
+/// Everything that steers a run.
+#[derive(Debug, Clone)]
+pub struct CurveOptions {
+    /// Polynomial order p, 1..=10.
+    pub order: usize,
+    pub spacing: NodeSpacing,
+    pub formulation: Formulation,
+    /// Young's modulus E (> 0); it does not change the mesh, only scales K.
+    pub young: f64,
+    /// Poisson's ratio ν in [0, 0.5).
+    pub poisson: f64,
+    /// Number of load increments n ≥ 1 (forced to 1 for `Linear`).
+    pub increments: usize,
+}
+
+impl Default for CurveOptions {
+    /// p = 2, optimal nodes, ILE with 10 increments, E = 1e5, ν = 0.45 (the
+    /// paper finds ν near 0.45 and about ten increments give the best meshes).
+    fn default() -> Self {
+        CurveOptions {
+            order: 2,
+            spacing: NodeSpacing::Optimal,
+            formulation: Formulation::Ile,
+            young: 1e5,
+            poisson: 0.45,
+            increments: 10,
+        }
+    }
+}
+
+/// A stage of the run, for progress reports.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    Elevate,
+    Project,
+    Increment,
+    Quality,
+}
+
+/// Progress of a run: `step` of `total` within `stage`.
+#[derive(Debug, Clone, Copy)]
+pub struct Progress {
+    pub stage: Stage,
+    pub step: usize,
+    pub total: usize,
+}
+
+/// Wall-clock seconds of each phase.
+#[derive(Debug, Clone, Default)]
+pub struct Timings {
+    pub total: f64,
+    pub elevate: f64,
+    pub project: f64,
+    pub assembly: f64,
+    pub solve: f64,
+    pub quality: f64,
+}
+
+/// What a run reports.
+#[derive(Debug, Clone)]
+pub struct CurveReport {
+    pub order: usize,
+    pub formulation: Formulation,
+    pub young: f64,
+    pub poisson: f64,
+    pub increments: usize,
+    pub nodes: usize,
+    /// Unknowns of the linear system (free degrees of freedom).
+    pub dofs: usize,
+    pub cells: usize,
+    /// Cells whose input orientation was negative and was flipped.
+    pub reoriented_cells: usize,
+    pub projected_nodes: usize,
+    /// Largest distance between a straight node and its projection.
+    pub max_projection_distance: f64,
+    pub quality: MeshQuality,
+    pub timings: Timings,
+}
+
+/// The result of a successful run.
+#[derive(Debug, Clone)]
+pub struct CurvedMesh {
+    /// The curved mesh (node coordinates at the `spacing` reference positions).
+    pub mesh: HighOrderMesh,
+    /// The straight-sided positions of the same nodes.
+    pub straight: Vec<f64>,
+    pub cell_quality: Vec<ElementQuality>,
+    pub report: CurveReport,
+}
+
+/// Check options before any work.
+pub fn validate_options(opts: &CurveOptions) -> Result<LinearElastic> {
+    if !(1..=10).contains(&opts.order) {
+        return Err(Error::InvalidInput(format!("order must be between 1 and 10, got {}", opts.order)));
+    }
+    if opts.increments == 0 {
+        return Err(Error::InvalidInput("the number of increments must be at least 1".into()));
+    }
+    LinearElastic::try_from_young_poisson(opts.young, opts.poisson)
+}
+
+/// Curve `linear` onto the geometry of `projector` (SPEC section 1).
+///
+/// `progress` is called at each stage and increment; returning `false`
+/// cancels the run with [`Error::Cancelled`].
+pub fn curve(
+    linear: &LinearMesh,
+    projector: &dyn Projector,
+    opts: &CurveOptions,
+    progress: &mut dyn FnMut(&Progress) -> bool,
+) -> Result<CurvedMesh> {
+    let t0 = Instant::now();
+    let material = validate_options(opts)?;
+    let mut tick = |stage: Stage, step: usize, total: usize| -> Result<()> {
+        if progress(&Progress { stage, step, total }) {
+            Ok(())
+        } else {
+            Err(Error::Cancelled)
+        }
+    };
+    let mut timings = Timings::default();
+
+    // 1-2. Validate and elevate.
+    tick(Stage::Elevate, 0, 1)?;
+    let (linear, reoriented) = validate_and_orient(linear)?;
+    let topo = Topology::new(&linear)?;
+    let nodes = NodeSet::new(topo.simplex, opts.order, opts.spacing);
+    let mut mesh = HighOrderMesh::elevate(&linear, &topo, &nodes, opts.spacing)?;
+    let straight = mesh.coords.clone();
+    timings.elevate = t0.elapsed().as_secs_f64();
+
+    // 3. Project the boundary nodes.
+    let t = Instant::now();
+    tick(Stage::Project, 0, 1)?;
+    let target = project_boundary(&mesh, &linear, projector)?;
+    let dim = mesh.dim();
+    let mut ubar = vec![0.0; mesh.coords.len()];
+    let mut projected_nodes = 0;
+    let mut max_dist: f64 = 0.0;
+    for (n, x) in &target {
+        let mut d2 = 0.0;
+        for k in 0..dim {
+            let u = x[k] - mesh.coords[n * dim + k];
+            ubar[n * dim + k] = u;
+            d2 += u * u;
+        }
+        max_dist = max_dist.max(d2.sqrt());
+        projected_nodes += 1;
+    }
+    timings.project = t.elapsed().as_secs_f64();
+
+    // 4. Solve in increments.
+    let increments = if opts.formulation == Formulation::Linear { 1 } else { opts.increments };
+    let basis = LagrangeBasis::new(&nodes);
+    let rule = simplex_rule(topo.simplex, 2 * opts.order);
+    let cache = ElementCache::new(&basis, &rule);
+    let kernel = LinearElasticKernel { cache, material };
+    let dofs = solve_increments(&mut mesh, &kernel, &ubar, increments, &mut timings, &mut tick)?;
+    let cache = kernel.cache;
+    if let Some(i) = mesh.coords.iter().position(|x| !x.is_finite()) {
+        return Err(Error::Solver(format!("the solution is not finite at node {}", i / dim)));
+    }
+
+    // 5. Quality.
+    let t = Instant::now();
+    tick(Stage::Quality, 0, 1)?;
+    let cell_quality = quality::cell_qualities(&cache, &mesh.coords, &mesh.cells);
+    let q = quality::summarize(&cell_quality);
+    timings.quality = t.elapsed().as_secs_f64();
+    timings.total = t0.elapsed().as_secs_f64();
+    let report = CurveReport {
+        order: opts.order,
+        formulation: opts.formulation,
+        young: opts.young,
+        poisson: opts.poisson,
+        increments,
+        nodes: mesh.n_nodes(),
+        dofs,
+        cells: mesh.n_cells(),
+        reoriented_cells: reoriented,
+        projected_nodes,
+        max_projection_distance: max_dist,
+        quality: q,
+        timings,
+    };
+    Ok(CurvedMesh { mesh, straight, cell_quality, report })
+}
+
+/// Move `mesh` by the prescribed boundary displacement `ubar` (one value per
+/// dof; only the boundary entries are used) in `increments` steps of ILE:
+/// each step assembles the linear-elastic stiffness on the current geometry
+/// Ω_n, solves K_ff u_f = −K_fd ū/n, and updates x_{n+1} = x_n + u.
+/// Returns the number of free degrees of freedom.
+pub fn solve_increments(
+    mesh: &mut HighOrderMesh,
+    kernel: &LinearElasticKernel,
+    ubar: &[f64],
+    increments: usize,
+    timings: &mut Timings,
+    tick: &mut dyn FnMut(Stage, usize, usize) -> Result<()>,
+) -> Result<usize> {
+    let dofs = DofMap::new(mesh);
+    let step: Vec<f64> = ubar.iter().map(|u| u / increments as f64).collect();
+    if dofs.n_free == 0 || ubar.iter().all(|&u| u == 0.0) {
+        for (x, u) in mesh.coords.iter_mut().zip(ubar) {
+            *x += u;
+        }
+        return Ok(dofs.n_free);
+    }
+    let t = Instant::now();
+    let pattern = dofs.pattern(mesh);
+    let chol = SparseCholesky::try_analyse(&pattern)?;
+    timings.solve += t.elapsed().as_secs_f64();
+    for k in 0..increments {
+        tick(Stage::Increment, k, increments)?;
+        let t = Instant::now();
+        let (values, mut rhs) =
+            assemble_linear_elastic(mesh, &mesh.coords, &dofs, &pattern, kernel, &step).map_err(|e| match e {
+                Error::InvalidElement(m) => Error::InvalidElement(format!(
+                    "{m} at the start of increment {} of {increments}; try more increments or another Poisson ratio",
+                    k + 1
+                )),
+                e => e,
+            })?;
+        timings.assembly += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        chol.try_factor_solve_in_place(&pattern, &values, &mut rhs)?;
+        timings.solve += t.elapsed().as_secs_f64();
+        for (dof, x) in mesh.coords.iter_mut().enumerate() {
+            let f = dofs.free[dof];
+            *x += if f == usize::MAX { step[dof] } else { rhs[f] };
+        }
+    }
+    Ok(dofs.n_free)
+}
+
+/// Batch size of projector calls.
+const PROJECT_BATCH: usize = 65_536;
+
+/// Project every node classified on an entity; returns node → projected point.
+///
+/// Rejects a projector error, a non-finite point, or a point farther from the
+/// straight node than the longest edge of the cells around it (a projection
+/// onto the wrong entity).
+fn project_boundary(
+    mesh: &HighOrderMesh,
+    linear: &LinearMesh,
+    projector: &dyn Projector,
+) -> Result<Vec<(usize, [f64; 3])>> {
+    let mut groups: BTreeMap<(usize, i32), Vec<usize>> = BTreeMap::new();
+    for (n, c) in mesh.constraint.iter().enumerate() {
+        if let NodeConstraint::OnEntity { dim, tag } = *c {
+            groups.entry((dim, tag)).or_default().push(n);
+        }
+    }
+    if groups.is_empty() {
+        return Ok(Vec::new());
+    }
+    // Local size: longest vertex-to-vertex edge of the cells around each node.
+    let mut size = vec![0.0f64; mesh.n_nodes()];
+    let npc_lin = linear.dim + 1;
+    for (c, lv) in linear.cells.chunks_exact(npc_lin).enumerate() {
+        let mut h: f64 = 0.0;
+        for i in 0..npc_lin {
+            for j in i + 1..npc_lin {
+                let (a, b) = (linear.vertex(lv[i]), linear.vertex(lv[j]));
+                h = h.max(((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt());
+            }
+        }
+        for &n in mesh.cell(c) {
+            size[n] = size[n].max(h);
+        }
+    }
+    let mut out = Vec::new();
+    for ((edim, tag), ids) in groups {
+        for chunk in ids.chunks(PROJECT_BATCH) {
+            let pts: Vec<[f64; 3]> = chunk.iter().map(|&n| mesh.node(n)).collect();
+            let mut proj = vec![[f64::NAN; 3]; pts.len()];
+            projector
+                .project(edim, tag, &pts, &mut proj)
+                .map_err(|m| Error::Projection(format!("projector failed on entity (dim {edim}, tag {tag}): {m}")))?;
+            for ((&n, x), y) in chunk.iter().zip(&pts).zip(&proj) {
+                let mut y = *y;
+                if mesh.dim() == 2 {
+                    y[2] = 0.0;
+                }
+                if !y.iter().all(|v| v.is_finite()) {
+                    return Err(Error::Projection(format!(
+                        "projector returned a non-finite point for node {n} on entity (dim {edim}, tag {tag})"
+                    )));
+                }
+                let d = ((y[0] - x[0]).powi(2) + (y[1] - x[1]).powi(2) + (y[2] - x[2]).powi(2)).sqrt();
+                if d > size[n] {
+                    return Err(Error::Projection(format!(
+                        "projector moved node {n} on entity (dim {edim}, tag {tag}) by {d:.3e}, more than the size \
+                         of its elements ({:.3e}): is the tag mapped to the right entity?",
+                        size[n]
+                    )));
+                }
+                out.push((n, y));
+            }
+        }
+    }
+    Ok(out)
+}

@@ -1,0 +1,362 @@
+//! The order-p mesh: global numbering of edge, face and interior nodes shared
+//! consistently between neighbours, straight-sided node positions, and the
+//! classification of every node against the tagged boundary.
+//!
+//! Global numbering: the linear vertices keep their numbers `0..n_vertices`;
+//! then `p − 1` nodes per edge, ordered from the edge's lower-numbered vertex;
+//! then (3D) `(p − 1)(p − 2)/2` nodes per face, indexed by their barycentric
+//! counts relative to the face's sorted vertices; then the interior nodes of
+//! each cell. A node's place therefore depends only on the entity it lies on,
+//! never on the cell that visits it.
+
+use std::collections::HashMap;
+
+use super::topology::Topology;
+use super::LinearMesh;
+use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing, Simplex};
+use crate::{Error, Result};
+
+/// What the boundary conditions say about a node.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NodeConstraint {
+    /// Interior node: free to move.
+    Free,
+    /// Boundary node held at its straight position (vertices, untagged boundary,
+    /// edges where differently tagged surfaces meet without a curve tag).
+    Fixed,
+    /// Projected onto the geometric entity of dimension `dim` and tag `tag`.
+    OnEntity { dim: usize, tag: i32 },
+}
+
+/// An order-p simplex mesh with its boundary classification.
+#[derive(Debug, Clone)]
+pub struct HighOrderMesh {
+    pub simplex: Simplex,
+    pub order: usize,
+    pub spacing: NodeSpacing,
+    /// Node coordinates, `dim` interleaved components.
+    pub coords: Vec<f64>,
+    /// Cell connectivity in the native local order of [`NodeSet`].
+    pub cells: Vec<usize>,
+    /// Number of linear vertices (the first nodes).
+    pub n_vertices: usize,
+    /// Per node: its boundary condition.
+    pub constraint: Vec<NodeConstraint>,
+}
+
+impl HighOrderMesh {
+    pub fn dim(&self) -> usize {
+        self.simplex.dim()
+    }
+    pub fn n_nodes(&self) -> usize {
+        self.coords.len() / self.dim()
+    }
+    pub fn nodes_per_cell(&self) -> usize {
+        self.simplex.n_nodes(self.order)
+    }
+    pub fn n_cells(&self) -> usize {
+        self.cells.len() / self.nodes_per_cell()
+    }
+    /// Node connectivity of cell `c`.
+    pub fn cell(&self, c: usize) -> &[usize] {
+        let n = self.nodes_per_cell();
+        &self.cells[c * n..(c + 1) * n]
+    }
+    /// Node `i` as a 3-vector (z = 0 in 2D).
+    pub fn node(&self, i: usize) -> [f64; 3] {
+        let d = self.dim();
+        let mut x = [0.0; 3];
+        x[..d].copy_from_slice(&self.coords[i * d..(i + 1) * d]);
+        x
+    }
+
+    /// Coordinates of the same geometry with nodes moved to the reference
+    /// positions of `target` (same order and multi-indices as this mesh's node
+    /// set): each node is the element map evaluated at its target reference
+    /// point. Exact, since both sets span the same polynomials; used to write
+    /// equispaced files (gmsh, VTK) from an optimal-node mesh.
+    pub fn coords_at_nodes(&self, basis: &LagrangeBasis, target: &NodeSet) -> Vec<f64> {
+        let dim = self.dim();
+        let npc = self.nodes_per_cell();
+        let tab = basis.tabulate(&target.coords);
+        let mut out = self.coords.clone();
+        for c in 0..self.n_cells() {
+            let cell = self.cell(c);
+            for (a, &g) in cell.iter().enumerate() {
+                if a <= dim {
+                    continue; // vertices do not move
+                }
+                for d in 0..dim {
+                    out[g * dim + d] = (0..npc).map(|b| tab.values[a * npc + b] * self.coords[cell[b] * dim + d]).sum();
+                }
+            }
+        }
+        out
+    }
+
+    /// Elevate a validated, positively oriented linear mesh to order `order`
+    /// with straight sides, and classify its nodes.
+    ///
+    /// Boundary facets listed in `linear.facets` are tagged; a listed facet
+    /// that is not on the boundary, or listed twice, is an error. In 3D,
+    /// feature edges must be edges of boundary facets.
+    pub fn elevate(
+        linear: &LinearMesh,
+        topo: &Topology,
+        nodes: &NodeSet,
+        spacing: NodeSpacing,
+    ) -> Result<HighOrderMesh> {
+        let simplex = topo.simplex;
+        let p = nodes.order;
+        let dim = simplex.dim();
+        let nv = linear.n_vertices();
+        let nc = linear.n_cells();
+        let npc_lin = dim + 1;
+        let per_edge = p.saturating_sub(1);
+        let per_face = if p >= 3 { (p - 1) * (p - 2) / 2 } else { 0 };
+        let n_face_entities = if simplex == Simplex::Tet { topo.faces.len() } else { 0 };
+        let npc = nodes.len();
+        let n_interior = npc
+            - npc_lin
+            - simplex.edges().len() * per_edge
+            - if simplex == Simplex::Tet { 4 * per_face } else { 0 };
+        let edge_base = nv;
+        let face_base = edge_base + topo.edges.len() * per_edge;
+        let interior_base = face_base + n_face_entities * per_face;
+        let n_nodes = interior_base + nc * n_interior;
+
+        // Local node → (entity kind, local entity, position) table, computed once.
+        #[derive(Clone, Copy)]
+        enum Local {
+            Vertex(usize),
+            Edge(usize),
+            Face(usize),
+            Interior(usize),
+        }
+        let local_edges = simplex.edges();
+        let mut interior_count = 0;
+        let local: Vec<Local> = nodes
+            .multi
+            .iter()
+            .map(|m| {
+                let support: Vec<usize> = (0..=dim).filter(|&i| m[i] > 0).collect();
+                match support.len() {
+                    1 => Local::Vertex(support[0]),
+                    2 => Local::Edge(
+                        local_edges
+                            .iter()
+                            .position(|e| {
+                                (e[0] == support[0] && e[1] == support[1])
+                                    || (e[1] == support[0] && e[0] == support[1])
+                            })
+                            .expect("every vertex pair is an edge of a simplex"),
+                    ),
+                    3 if dim == 3 => Local::Face(
+                        crate::reference::simplex::TET_FACES
+                            .iter()
+                            .position(|f| {
+                                let mut s = *f;
+                                s.sort_unstable();
+                                s[..] == support[..]
+                            })
+                            .expect("every vertex triple is a face of a tet"),
+                    ),
+                    _ => {
+                        interior_count += 1;
+                        Local::Interior(interior_count - 1)
+                    }
+                }
+            })
+            .collect();
+        debug_assert_eq!(interior_count, n_interior);
+
+        let mut cells = vec![0usize; nc * npc];
+        let mut coords = vec![0.0; n_nodes * dim];
+        let tet_faces = crate::reference::simplex::TET_FACES;
+        for c in 0..nc {
+            let lv = &linear.cells[c * npc_lin..(c + 1) * npc_lin];
+            let xv: Vec<[f64; 3]> = lv.iter().map(|&v| linear.vertex(v)).collect();
+            for (a, (m, loc)) in nodes.multi.iter().zip(&local).enumerate() {
+                let g = match *loc {
+                    Local::Vertex(i) => lv[i],
+                    Local::Edge(le) => {
+                        let [i, j] = local_edges[le];
+                        let (gi, gj) = (lv[i], lv[j]);
+                        let count_at_min = if gi < gj { m[i] } else { m[j] };
+                        edge_base + topo.cell_edges[c * local_edges.len() + le] * per_edge + (p - count_at_min - 1)
+                    }
+                    Local::Face(lf) => {
+                        let mut vs: [(usize, usize); 3] = [0, 1, 2].map(|k| {
+                            let i = tet_faces[lf][k];
+                            (lv[i], m[i])
+                        });
+                        vs.sort_unstable();
+                        // counts minus one at the sorted vertices sum to q = p − 3
+                        let (c0, c1) = (vs[0].1 - 1, vs[1].1 - 1);
+                        let q = p - 3;
+                        let offset: usize = (0..c0).map(|j| q - j + 1).sum();
+                        face_base + topo.cell_faces[c * 4 + lf] * per_face + offset + c1
+                    }
+                    Local::Interior(k) => interior_base + c * n_interior + k,
+                };
+                cells[c * npc + a] = g;
+                // Straight position: x = Σ λ_i x_i with λ from the reference node.
+                let xi = nodes.coords[a];
+                let lam0 = 1.0 - xi[..dim].iter().sum::<f64>();
+                for d in 0..dim {
+                    let mut x = lam0 * xv[0][d];
+                    for i in 0..dim {
+                        x += xi[i] * xv[i + 1][d];
+                    }
+                    coords[g * dim + d] = x;
+                }
+            }
+        }
+
+        let constraint = classify(linear, topo, p, n_nodes, edge_base, face_base)?;
+        Ok(HighOrderMesh {
+            simplex,
+            order: p,
+            spacing,
+            coords,
+            cells,
+            n_vertices: nv,
+            constraint,
+        })
+    }
+}
+
+/// Per-edge (or per-face) state while gathering the tags of adjacent boundary facets.
+#[derive(Clone, Copy, PartialEq)]
+enum Tagging {
+    None,
+    Untagged,
+    Tag(i32),
+    Mixed,
+}
+
+impl Tagging {
+    fn add(self, t: Option<i32>) -> Tagging {
+        match (self, t) {
+            (Tagging::None, None) => Tagging::Untagged,
+            (Tagging::None, Some(t)) => Tagging::Tag(t),
+            (Tagging::Tag(a), Some(b)) if a == b => Tagging::Tag(a),
+            (Tagging::Untagged, None) => Tagging::Untagged,
+            _ => Tagging::Mixed,
+        }
+    }
+}
+
+fn classify(
+    linear: &LinearMesh,
+    topo: &Topology,
+    p: usize,
+    n_nodes: usize,
+    edge_base: usize,
+    face_base: usize,
+) -> Result<Vec<NodeConstraint>> {
+    let dim = linear.dim;
+    let per_edge = p.saturating_sub(1);
+    let per_face = if p >= 3 { (p - 1) * (p - 2) / 2 } else { 0 };
+    let mut constraint = vec![NodeConstraint::Free; n_nodes];
+    for (v, &b) in topo.boundary_vertex.iter().enumerate() {
+        if b {
+            constraint[v] = NodeConstraint::Fixed;
+        }
+    }
+    // Tag of every boundary facet (None = untagged).
+    let n_facets = if dim == 3 { topo.faces.len() } else { topo.edges.len() };
+    let mut is_boundary = vec![false; n_facets];
+    for &f in &topo.boundary_facets {
+        is_boundary[f] = true;
+    }
+    let mut facet_tag: Vec<Option<i32>> = vec![None; n_facets];
+    let mut given = vec![false; n_facets];
+    let edge_lookup = topo.edge_lookup();
+    let face_lookup = if dim == 3 { topo.face_lookup() } else { HashMap::new() };
+    for (k, f) in linear.facets.chunks_exact(dim).enumerate() {
+        let id = if dim == 2 {
+            edge_lookup.get(&[f[0].min(f[1]), f[0].max(f[1])]).copied()
+        } else {
+            let mut key = [f[0], f[1], f[2]];
+            key.sort_unstable();
+            face_lookup.get(&key).copied()
+        };
+        let id = match id {
+            Some(id) if is_boundary[id] => id,
+            _ => {
+                return Err(Error::InvalidInput(format!(
+                    "tagged facet {k} {:?} is not a boundary facet of the mesh",
+                    f
+                )))
+            }
+        };
+        if given[id] {
+            return Err(Error::InvalidInput(format!("boundary facet {:?} is tagged twice (facet {k})", f)));
+        }
+        given[id] = true;
+        facet_tag[id] = Some(linear.facet_tags[k]);
+    }
+
+    if dim == 2 {
+        for &e in &topo.boundary_facets {
+            let c = match facet_tag[e] {
+                Some(tag) => NodeConstraint::OnEntity { dim: 1, tag },
+                None => NodeConstraint::Fixed,
+            };
+            for k in 0..per_edge {
+                constraint[edge_base + e * per_edge + k] = c;
+            }
+        }
+        return Ok(constraint);
+    }
+
+    // 3D: faces, then edges of boundary faces, then feature edges (which win).
+    let mut edge_tagging = vec![Tagging::None; topo.edges.len()];
+    for &f in &topo.boundary_facets {
+        let c = match facet_tag[f] {
+            Some(tag) => NodeConstraint::OnEntity { dim: 2, tag },
+            None => NodeConstraint::Fixed,
+        };
+        for k in 0..per_face {
+            constraint[face_base + f * per_face + k] = c;
+        }
+        let [a, b, cc] = topo.faces[f];
+        for e in [[a, b], [b, cc], [a, cc]] {
+            let id = edge_lookup[&e];
+            edge_tagging[id] = edge_tagging[id].add(facet_tag[f]);
+        }
+    }
+    for (e, t) in edge_tagging.iter().enumerate() {
+        let c = match *t {
+            Tagging::None => continue,
+            Tagging::Tag(tag) => NodeConstraint::OnEntity { dim: 2, tag },
+            Tagging::Untagged | Tagging::Mixed => NodeConstraint::Fixed,
+        };
+        for k in 0..per_edge {
+            constraint[edge_base + e * per_edge + k] = c;
+        }
+    }
+    let mut edge_given = vec![false; topo.edges.len()];
+    for (k, e) in linear.feature_edges.chunks_exact(2).enumerate() {
+        let key = [e[0].min(e[1]), e[0].max(e[1])];
+        let id = match edge_lookup.get(&key) {
+            Some(&id) if edge_tagging[id] != Tagging::None => id,
+            _ => {
+                return Err(Error::InvalidInput(format!(
+                    "feature edge {k} {:?} is not an edge of the boundary",
+                    e
+                )))
+            }
+        };
+        if edge_given[id] {
+            return Err(Error::InvalidInput(format!("feature edge {:?} is tagged twice (edge {k})", e)));
+        }
+        edge_given[id] = true;
+        for j in 0..per_edge {
+            constraint[edge_base + id * per_edge + j] =
+                NodeConstraint::OnEntity { dim: 1, tag: linear.feature_edge_tags[k] };
+        }
+    }
+    Ok(constraint)
+}

@@ -1,0 +1,149 @@
+//! Element and mesh quality (paper section 5, eq. (27)).
+//!
+//! For an element e with straight-sided (affine) configuration X and curved
+//! configuration x, F = ∂x/∂X = (∂x/∂ξ)(∂X/∂ξ)⁻¹ at each quadrature point of
+//! a rule exact to degree 2p. With I1 = F:F, I2 = H:H (H = cof F), J = det F:
+//!
+//! Q_j = sqrt(min I_j / max I_j), j = 1, 2, and Q3 = min J / max J (the
+//! scaled Jacobian). If J ≤ 0 somewhere the element is invalid and
+//! Q3 = min J / max |J| ≤ 0. In 2D the 2×2 F is used, so Q1 = Q2.
+//!
+//! These are *sampled* measures: an element could in principle be inverted
+//! between quadrature points. Read-only; never modifies the mesh.
+
+use rayon::prelude::*;
+
+use crate::mapping::{self, ElementCache};
+
+/// Q1, Q2, Q3 of one element.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ElementQuality {
+    pub q1: f64,
+    pub q2: f64,
+    pub q3: f64,
+}
+
+impl ElementQuality {
+    pub fn is_valid(&self) -> bool {
+        self.q3 > 0.0
+    }
+}
+
+/// Number of bins of the Q3 histogram over [0, 1].
+pub const HISTOGRAM_BINS: usize = 10;
+
+/// Mesh-wide reductions.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeshQuality {
+    pub min_q1: f64,
+    pub min_q2: f64,
+    pub min_q3: f64,
+    pub mean_q3: f64,
+    /// Number of elements with J ≤ 0 at a sample point.
+    pub n_invalid: usize,
+    /// Index of the element with the lowest Q3.
+    pub worst_cell: usize,
+    /// Counts of valid elements with Q3 in [k/10, (k+1)/10) (last bin includes 1).
+    pub histogram: [usize; HISTOGRAM_BINS],
+}
+
+/// Quality of one element with node coordinates `xe` (`dim` components per
+/// node, native ordering, the first dim+1 nodes being the vertices).
+pub fn element_quality(cache: &ElementCache, xe: &[f64]) -> ElementQuality {
+    let dim = cache.dim;
+    let xv: Vec<[f64; 3]> = (0..=dim)
+        .map(|a| {
+            let mut v = [0.0; 3];
+            v[..dim].copy_from_slice(&xe[a * dim..(a + 1) * dim]);
+            v
+        })
+        .collect();
+    let (jx_inv, _) = mapping::inverse(dim, &mapping::affine_jacobian(dim, &xv));
+    let (mut i1min, mut i1max) = (f64::INFINITY, 0.0f64);
+    let (mut i2min, mut i2max) = (f64::INFINITY, 0.0f64);
+    let (mut jmin, mut jmax, mut jabsmax) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
+    for q in 0..cache.n_points() {
+        let dxdxi = mapping::jacobian(dim, xe, cache.grads_at(q));
+        let f = mapping::matmul(dim, &dxdxi, &jx_inv);
+        let h = mapping::cofactor(dim, &f);
+        let (mut i1, mut i2) = (0.0, 0.0);
+        for i in 0..dim {
+            for j in 0..dim {
+                i1 += f[i][j] * f[i][j];
+                i2 += h[i][j] * h[i][j];
+            }
+        }
+        let j = mapping::det(dim, &f);
+        i1min = i1min.min(i1);
+        i1max = i1max.max(i1);
+        i2min = i2min.min(i2);
+        i2max = i2max.max(i2);
+        jmin = jmin.min(j);
+        jmax = jmax.max(j);
+        jabsmax = jabsmax.max(j.abs());
+    }
+    let q3 = if jmin > 0.0 {
+        jmin / jmax
+    } else if jabsmax > 0.0 {
+        jmin / jabsmax
+    } else {
+        -1.0
+    };
+    let ratio = |lo: f64, hi: f64| if hi > 0.0 { (lo / hi).sqrt() } else { 0.0 };
+    let q = ElementQuality { q1: ratio(i1min, i1max), q2: ratio(i2min, i2max), q3 };
+    if q.q1.is_nan() || q.q2.is_nan() || q.q3.is_nan() {
+        // Non-finite geometry: report as invalid rather than propagate NaN.
+        return ElementQuality { q1: 0.0, q2: 0.0, q3: -1.0 };
+    }
+    q
+}
+
+/// Quality of every cell of a mesh given its coordinates and connectivity.
+pub fn cell_qualities(cache: &ElementCache, coords: &[f64], cells: &[usize]) -> Vec<ElementQuality> {
+    let dim = cache.dim;
+    let npc = cache.n_basis;
+    cells
+        .par_chunks_exact(npc)
+        .map_init(
+            || vec![0.0; npc * dim],
+            |xe, cell| {
+                for (a, &n) in cell.iter().enumerate() {
+                    xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
+                }
+                element_quality(cache, xe)
+            },
+        )
+        .collect()
+}
+
+/// Reduce element qualities to the mesh figures.
+pub fn summarize(q: &[ElementQuality]) -> MeshQuality {
+    let mut m = MeshQuality {
+        min_q1: f64::INFINITY,
+        min_q2: f64::INFINITY,
+        min_q3: f64::INFINITY,
+        mean_q3: 0.0,
+        n_invalid: 0,
+        worst_cell: 0,
+        histogram: [0; HISTOGRAM_BINS],
+    };
+    for (c, e) in q.iter().enumerate() {
+        m.min_q1 = m.min_q1.min(e.q1);
+        m.min_q2 = m.min_q2.min(e.q2);
+        if e.q3 < m.min_q3 {
+            m.min_q3 = e.q3;
+            m.worst_cell = c;
+        }
+        m.mean_q3 += e.q3;
+        if e.is_valid() {
+            let bin = ((e.q3 * HISTOGRAM_BINS as f64) as usize).min(HISTOGRAM_BINS - 1);
+            m.histogram[bin] += 1;
+        } else {
+            m.n_invalid += 1;
+        }
+    }
+    if !q.is_empty() {
+        m.mean_q3 /= q.len() as f64;
+    }
+    m
+}

@@ -1,0 +1,77 @@
+//! Patch test: a linear displacement prescribed on the whole boundary is
+//! reproduced to round-off at every interior node, for p = 1..6, in 2D and 3D,
+//! with one and several ILE increments.
+
+mod common;
+
+use hocurve::assembly::LinearElasticKernel;
+use hocurve::curve::{solve_increments, Timings};
+use hocurve::mapping::ElementCache;
+use hocurve::material::LinearElastic;
+use hocurve::mesh::{validate_and_orient, HighOrderMesh, LinearMesh, NodeConstraint, Topology};
+use hocurve::quadrature::simplex_rule;
+use hocurve::reference::{LagrangeBasis, NodeSet, NodeSpacing};
+
+/// u(X) = A X + b with a general (non-symmetric) A.
+fn linear_field(x: &[f64], dim: usize) -> Vec<f64> {
+    let a = [[0.05, -0.02, 0.03], [0.01, 0.04, -0.03], [-0.02, 0.02, 0.06]];
+    let b = [0.01, -0.02, 0.015];
+    (0..dim).map(|i| b[i] + (0..dim).map(|j| a[i][j] * x[j]).sum::<f64>()).collect()
+}
+
+fn run_patch(linear: &LinearMesh, order: usize, increments: usize) -> f64 {
+    let (linear, _) = validate_and_orient(linear).unwrap();
+    let topo = Topology::new(&linear).unwrap();
+    let nodes = NodeSet::new(topo.simplex, order, NodeSpacing::Optimal);
+    let mut mesh = HighOrderMesh::elevate(&linear, &topo, &nodes, NodeSpacing::Optimal).unwrap();
+    let dim = mesh.dim();
+    let straight = mesh.coords.clone();
+    let mut ubar = vec![0.0; straight.len()];
+    let mut n_interior = 0;
+    for n in 0..mesh.n_nodes() {
+        if mesh.constraint[n] != NodeConstraint::Free {
+            let u = linear_field(&straight[n * dim..(n + 1) * dim], dim);
+            ubar[n * dim..(n + 1) * dim].copy_from_slice(&u);
+        } else {
+            n_interior += 1;
+        }
+    }
+    assert!(n_interior > 0, "the patch must have interior nodes");
+    let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(topo.simplex, 2 * order));
+    let kernel = LinearElasticKernel { cache, material: LinearElastic::try_from_young_poisson(1e5, 0.3).unwrap() };
+    let mut t = Timings::default();
+    solve_increments(&mut mesh, &kernel, &ubar, increments, &mut t, &mut |_, _, _| Ok(())).unwrap();
+    let mut err: f64 = 0.0;
+    for n in 0..mesh.n_nodes() {
+        let x0 = &straight[n * dim..(n + 1) * dim];
+        let u = linear_field(x0, dim);
+        for d in 0..dim {
+            err = err.max((mesh.coords[n * dim + d] - (x0[d] + u[d])).abs());
+        }
+    }
+    err
+}
+
+#[test]
+fn linear_displacement_is_reproduced_in_2d_for_p_1_to_6() {
+    let mesh = common::square_mesh(3);
+    for p in 1..=6 {
+        for inc in [1, 3] {
+            let e = run_patch(&mesh, p, inc);
+            println!("2D p={p} increments={inc}: max nodal error {e:.2e}");
+            assert!(e < 1e-11, "2D p={p} increments={inc}: error {e:e}");
+        }
+    }
+}
+
+#[test]
+fn linear_displacement_is_reproduced_in_3d_for_p_1_to_6() {
+    for p in 1..=6 {
+        // p = 1 needs interior vertices; higher orders have interior nodes anyway.
+        let mesh = common::cube_mesh(if p == 1 { 3 } else { 2 });
+        let inc = if p <= 3 { 2 } else { 1 };
+        let e = run_patch(&mesh, p, inc);
+        println!("3D p={p} increments={inc}: max nodal error {e:.2e}");
+        assert!(e < 1e-11, "3D p={p}: error {e:e}");
+    }
+}
