@@ -72,7 +72,7 @@ impl Naca4 {
                 "a cambered NACA section needs a camber position (second digit) > 0".into(),
             ));
         }
-        if !(chord > 0.0 && chord.is_finite()) || !origin.iter().all(|v| v.is_finite()) {
+        if chord <= 0.0 || !chord.is_finite() || !origin.iter().all(|v| v.is_finite()) {
             return Err(Error::InvalidInput(
                 "the NACA chord must be positive and the origin finite".into(),
             ));
