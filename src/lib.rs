@@ -6,13 +6,13 @@
 //! → `quality` → `assembly` → `solver` → `curve`; `io`, `ffi` and the CLI sit
 //! at the edges.
 
-pub mod error;
-pub mod reference;
-pub mod quadrature;
-pub mod geometry;
-pub mod mesh;
 pub mod cases;
+pub mod error;
+pub mod geometry;
 pub mod io;
+pub mod mesh;
+pub mod quadrature;
+pub mod reference;
 
 pub use error::{Error, Result};
 pub mod mapping;

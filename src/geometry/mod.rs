@@ -18,3 +18,9 @@ pub trait Projector: Sync {
         out: &mut [[f64; 3]],
     ) -> std::result::Result<(), String>;
 }
+
+pub mod naca;
+pub mod shapes;
+
+pub use naca::Naca4;
+pub use shapes::{Shape, ShapeProjector};
