@@ -1,0 +1,1 @@
+//! VTK files: XML unstructured grids (.vtu) with Lagrange cells.
