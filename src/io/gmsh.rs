@@ -883,8 +883,8 @@ $EndElements
         for c in 0..cells {
             for a in multi {
                 coords.push(2.0 * c as f64 + a[1] as f64 / p as f64);
-                for i in 2..=d {
-                    coords.push(a[i] as f64 / p as f64 + 0.1 * c as f64);
+                for &ai in &a[2..=d] {
+                    coords.push(ai as f64 / p as f64 + 0.1 * c as f64);
                 }
             }
         }
