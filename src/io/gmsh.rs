@@ -1018,4 +1018,90 @@ $EndElements
             assert!(parse_msh_bytes(&data[..cut]).is_err(), "cut at {cut}");
         }
     }
+
+    /// Files written by gmsh itself (scripts/gen_gmsh_samples.py) and the
+    /// counts gmsh's API reported for them.
+    fn gmsh_sample(name: &str) -> (MshContent, [usize; 6]) {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+        let expected = std::fs::read_to_string(dir.join("gmsh_samples_expected.txt")).unwrap();
+        let row = expected
+            .lines()
+            .find(|l| l.split_whitespace().next() == Some(name))
+            .unwrap();
+        let v: Vec<usize> = row
+            .split_whitespace()
+            .skip(1)
+            .map(|t| t.parse().unwrap())
+            .collect();
+        let msh = read_msh(&dir.join(name)).unwrap();
+        (msh, [v[0], v[1], v[2], v[3], v[4], v[5]])
+    }
+
+    fn signed_measure(mesh: &LinearMesh, cell: &[usize]) -> f64 {
+        let x: Vec<[f64; 3]> = cell.iter().map(|&v| mesh.vertex(v)).collect();
+        let e = |i: usize, c: usize| x[i][c] - x[0][c];
+        if mesh.dim == 2 {
+            e(1, 0) * e(2, 1) - e(1, 1) * e(2, 0)
+        } else {
+            e(1, 0) * (e(2, 1) * e(3, 2) - e(2, 2) * e(3, 1))
+                - e(1, 1) * (e(2, 0) * e(3, 2) - e(2, 2) * e(3, 0))
+                + e(1, 2) * (e(2, 0) * e(3, 1) - e(2, 1) * e(3, 0))
+        }
+    }
+
+    #[test]
+    fn reads_linear_meshes_written_by_gmsh() {
+        for name in ["plate_hole_2d.msh", "plate_hole_2d_bin.msh", "box_3d.msh"] {
+            let (msh, [dim, nv, nc, nf, ne, _]) = gmsh_sample(name);
+            let mesh = to_linear_mesh(&msh).unwrap();
+            assert_eq!(
+                (mesh.dim, mesh.n_vertices(), mesh.n_cells(), mesh.n_facets()),
+                (dim, nv, nc, nf),
+                "{name}"
+            );
+            assert_eq!(mesh.feature_edges.len() / 2, ne, "{name}");
+            assert_eq!(mesh.feature_edge_tags.len(), ne, "{name}");
+            assert!(mesh.facet_tags.iter().all(|&t| t > 0));
+            for cell in mesh.cells.chunks(dim + 1) {
+                assert!(signed_measure(&mesh, cell) > 0.0, "{name}: inverted cell");
+            }
+        }
+        let ascii = to_linear_mesh(&gmsh_sample("plate_hole_2d.msh").0).unwrap();
+        let binary = to_linear_mesh(&gmsh_sample("plate_hole_2d_bin.msh").0).unwrap();
+        // gmsh's ASCII keeps 16 significant digits, its binary all 17.
+        assert_eq!(
+            (&ascii.cells, &ascii.facets),
+            (&binary.cells, &binary.facets)
+        );
+        assert_eq!(ascii.facet_tags, binary.facet_tags);
+        let gap = ascii
+            .coords
+            .iter()
+            .zip(&binary.coords)
+            .map(|(a, b)| (a - b).abs());
+        assert!(gap.fold(0.0, f64::max) < 1e-14);
+    }
+
+    #[test]
+    fn reads_quadratic_tets_written_by_gmsh_in_gmsh_order() {
+        let (msh, [_, nv, nc, _, _, order]) = gmsh_sample("box_3d_p2.msh");
+        assert!(matches!(to_linear_mesh(&msh), Err(Error::Io(_))));
+        let (simplex, p, coords, cells) = high_order_cells(&msh).unwrap();
+        assert_eq!(
+            (simplex, p, coords.len() / 3, cells.len() / 10),
+            (Simplex::Tet, order, nv, nc)
+        );
+        // The box is straight-sided: every node sits at its multi-index's
+        // barycentric combination of the cell's vertices.
+        let multi = gmsh_multi_indices(Simplex::Tet, 2);
+        let x = |v: usize| [coords[3 * v], coords[3 * v + 1], coords[3 * v + 2]];
+        for cell in cells.chunks(10) {
+            for (k, a) in multi.iter().enumerate() {
+                for c in 0..3 {
+                    let want: f64 = (0..4).map(|i| a[i] as f64 / 2.0 * x(cell[i])[c]).sum();
+                    assert!((x(cell[k])[c] - want).abs() < 1e-12);
+                }
+            }
+        }
+    }
 }
