@@ -876,6 +876,37 @@ $EndElements
         assert!(parse_msh(&text).is_ok()); // max tag is informational
     }
 
+    #[test]
+    fn mutated_files_never_panic() {
+        // Deterministic byte mutations of valid ASCII and binary files: the
+        // reader and the conversions must return, whatever the bytes.
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut rand = move |n: usize| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state % n as u64) as usize
+        };
+        let alphabet = b"0123456789 -.\n$eE\xff\x00";
+        for base in [
+            TET.as_bytes().to_vec(),
+            SQUARE.as_bytes().to_vec(),
+            tet_binary(),
+        ] {
+            for _ in 0..3000 {
+                let mut data = base.clone();
+                for _ in 0..1 + rand(3) {
+                    let i = rand(data.len());
+                    data[i] = alphabet[rand(alphabet.len())];
+                }
+                if let Ok(msh) = parse_msh_bytes(&data) {
+                    let _ = to_linear_mesh(&msh);
+                    let _ = high_order_cells(&msh);
+                }
+            }
+        }
+    }
+
     fn grid_nodes(simplex: Simplex, p: usize, multi: &[[usize; 4]], cells: usize) -> Vec<f64> {
         // Cell c is the reference simplex shifted by 2c along x; nodes not shared.
         let d = simplex.dim();
