@@ -13,7 +13,10 @@ use std::path::PathBuf;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
-    let out = PathBuf::from(args.next().ok_or("usage: write_sample OUT_DIR [ORDER...]")?);
+    let out = PathBuf::from(
+        args.next()
+            .ok_or("usage: write_sample OUT_DIR [ORDER...]")?,
+    );
     let mut orders: Vec<usize> = args.map(|a| a.parse()).collect::<Result<_, _>>()?;
     if orders.is_empty() {
         orders = vec![3, 6];
@@ -29,7 +32,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 cells: &cells,
                 cell_multi: &multi,
             };
-            let name = format!("{}_p{p}", if simplex == Simplex::Tri { "tri" } else { "tet" });
+            let name = format!(
+                "{}_p{p}",
+                if simplex == Simplex::Tri {
+                    "tri"
+                } else {
+                    "tet"
+                }
+            );
             write_msh(&out.join(format!("{name}.msh")), &view)?;
             let ids: Vec<f64> = (0..view.n_cells()).map(|c| c as f64).collect();
             write_vtu(
