@@ -1,2 +1,3 @@
+pub mod ordering;
 pub mod simplex;
 pub use simplex::Simplex;
