@@ -188,7 +188,9 @@ fn cmd_demo(argv: &[String]) -> Result<()> {
     let mut reports = Vec::new();
     for (case, file) in [(&c2, "demo-2d.vtu"), (&c3, "demo-3d.vtu")] {
         eprintln!("[{}] {}", case.name, case.description);
-        let curved = run_case(&case.name, &case.mesh, &case.projector, &opts)?;
+        let mut mesh = case.mesh.clone();
+        mesh.retain_tags(|d, t| case.projector.get(d, t).is_some());
+        let curved = run_case(&case.name, &mesh, &case.projector, &opts)?;
         let path = dir.join(file);
         write_mesh(&path, &curved)?;
         eprintln!("[{}] wrote {}", case.name, path.display());
@@ -235,7 +237,8 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
     }
     let msh = io::gmsh::read_msh(&input)?;
     let mut mesh = io::gmsh::to_linear_mesh(&msh)?;
-    keep_mapped_tags(&mut mesh, &projector);
+    // Facets and feature edges whose tag has no shape stay straight.
+    mesh.retain_tags(|d, t| projector.get(d, t).is_some());
     let curved = run_case(&input.display().to_string(), &mesh, &projector, &opts)?;
     write_mesh(&output, &curved)?;
     eprintln!("wrote {}", output.display());
@@ -244,29 +247,6 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
         eprintln!("wrote {r}");
     }
     Ok(())
-}
-
-/// Facets and feature edges whose tag has no shape stay straight: drop their tags.
-fn keep_mapped_tags(mesh: &mut LinearMesh, projector: &ShapeProjector) {
-    let d = mesh.dim;
-    let (mut facets, mut tags) = (Vec::new(), Vec::new());
-    for (f, &t) in mesh.facets.chunks_exact(d).zip(&mesh.facet_tags) {
-        if projector.get(d - 1, t).is_some() {
-            facets.extend_from_slice(f);
-            tags.push(t);
-        }
-    }
-    mesh.facets = facets;
-    mesh.facet_tags = tags;
-    let (mut edges, mut etags) = (Vec::new(), Vec::new());
-    for (e, &t) in mesh.feature_edges.chunks_exact(2).zip(&mesh.feature_edge_tags) {
-        if projector.get(1, t).is_some() {
-            edges.extend_from_slice(e);
-            etags.push(t);
-        }
-    }
-    mesh.feature_edges = edges;
-    mesh.feature_edge_tags = etags;
 }
 
 fn cmd_quality(argv: &[String]) -> Result<()> {

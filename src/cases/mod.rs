@@ -34,16 +34,8 @@ pub struct Case {
 /// the tet volume in 3D (positive for counter-clockwise / right-handed order).
 pub(crate) fn signed_measure(mesh: &LinearMesh, cell: &[usize]) -> f64 {
     let p: Vec<[f64; 3]> = cell.iter().map(|&v| mesh.vertex(v)).collect();
-    let e = |k: usize| [p[k][0] - p[0][0], p[k][1] - p[0][1], p[k][2] - p[0][2]];
-    if mesh.dim == 2 {
-        let (a, b) = (e(1), e(2));
-        0.5 * (a[0] * b[1] - a[1] * b[0])
-    } else {
-        let (a, b, c) = (e(1), e(2), e(3));
-        (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
-            + a[2] * (b[0] * c[1] - b[1] * c[0]))
-            / 6.0
-    }
+    let factorial = if mesh.dim == 2 { 2.0 } else { 6.0 };
+    crate::mesh::topology::signed_measure(mesh.dim, &p) / factorial
 }
 
 /// Append `cell` to the mesh, swapping its last two vertices if needed so

@@ -21,13 +21,34 @@ pub struct LinearMesh {
 }
 
 impl LinearMesh {
+    /// Drop the tags of facets (entity dim = dim − 1) and feature edges
+    /// (entity dim 1) for which `keep(entity_dim, tag)` is false: they stay
+    /// straight. Used when the geometry describes only some entities.
+    pub fn retain_tags(&mut self, keep: impl Fn(usize, i32) -> bool) {
+        let d = self.dim;
+        let (mut facets, mut tags) = (Vec::new(), Vec::new());
+        for (f, &t) in self.facets.chunks_exact(d.max(1)).zip(&self.facet_tags) {
+            if keep(d.saturating_sub(1), t) {
+                facets.extend_from_slice(f);
+                tags.push(t);
+            }
+        }
+        self.facets = facets;
+        self.facet_tags = tags;
+        let (mut edges, mut etags) = (Vec::new(), Vec::new());
+        for (e, &t) in self.feature_edges.chunks_exact(2).zip(&self.feature_edge_tags) {
+            if keep(1, t) {
+                edges.extend_from_slice(e);
+                etags.push(t);
+            }
+        }
+        self.feature_edges = edges;
+        self.feature_edge_tags = etags;
+    }
+
     /// Number of vertices.
     pub fn n_vertices(&self) -> usize {
-        if self.dim == 0 {
-            0
-        } else {
-            self.coords.len() / self.dim
-        }
+        self.coords.len().checked_div(self.dim).unwrap_or(0)
     }
     /// Number of cells.
     pub fn n_cells(&self) -> usize {
@@ -35,11 +56,7 @@ impl LinearMesh {
     }
     /// Number of tagged boundary facets.
     pub fn n_facets(&self) -> usize {
-        if self.dim == 0 {
-            0
-        } else {
-            self.facets.len() / self.dim
-        }
+        self.facets.len().checked_div(self.dim).unwrap_or(0)
     }
     /// Vertex `v` as a 3-vector (z = 0 in 2D).
     pub fn vertex(&self, v: usize) -> [f64; 3] {
