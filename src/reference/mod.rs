@@ -1,0 +1,4 @@
+//! Reference simplices.
+
+pub mod simplex;
+pub use simplex::Simplex;
