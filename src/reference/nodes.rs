@@ -566,3 +566,196 @@ mod tests {
         }
     }
 }
+
+/// Literal transcriptions of Hesthaven & Warburton's `Nodes2D` and `Nodes3D`
+/// (equilateral simplices, tolerance-based edge handling), to check that the
+/// barycentric warp & blend above reproduces them.
+#[cfg(test)]
+mod hesthaven_reference {
+    use super::*;
+    use std::f64::consts::PI;
+
+    type V3 = [f64; 3];
+
+    fn sub(a: V3, b: V3) -> V3 {
+        [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+    }
+    fn unit(a: V3) -> V3 {
+        let n = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+        [a[0] / n, a[1] / n, a[2] / n]
+    }
+    fn mid(a: V3, b: V3) -> V3 {
+        [
+            0.5 * (a[0] + b[0]),
+            0.5 * (a[1] + b[1]),
+            0.5 * (a[2] + b[2]),
+        ]
+    }
+
+    /// `Warpfactor` (2D): interpolant of GLL − equispaced divided by 1 − r².
+    fn warpfactor(p: usize, r: f64) -> f64 {
+        let gll = gauss_lobatto_legendre(p + 1);
+        let req: Vec<f64> = (0..=p).map(|m| -1.0 + 2.0 * m as f64 / p as f64).collect();
+        let mut warp = 0.0;
+        for m in 0..=p {
+            let mut l = 1.0;
+            for j in 0..=p {
+                if j != m {
+                    l *= (r - req[j]) / (req[m] - req[j]);
+                }
+            }
+            warp += (gll[m] - req[m]) * l;
+        }
+        if r.abs() < 1.0 - 1e-10 {
+            warp / (1.0 - r * r)
+        } else {
+            0.0
+        }
+    }
+
+    /// `evalwarp` (3D), with the descending point lists of `Nodes3D`.
+    fn evalwarp(p: usize, r: f64) -> f64 {
+        let xnodes: Vec<f64> = gauss_lobatto_legendre(p + 1).into_iter().rev().collect();
+        let xeq: Vec<f64> = (1..=p + 1)
+            .map(|i| -1.0 + 2.0 * (p + 1 - i) as f64 / p as f64)
+            .collect();
+        let mut warp = 0.0;
+        for i in 1..=p + 1 {
+            let mut d = xnodes[i - 1] - xeq[i - 1];
+            for j in 2..=p {
+                if i != j {
+                    d *= (r - xeq[j - 1]) / (xeq[i - 1] - xeq[j - 1]);
+                }
+            }
+            if i != 1 {
+                d = -d / (xeq[i - 1] - xeq[0]);
+            }
+            if i != p + 1 {
+                d /= xeq[i - 1] - xeq[p];
+            }
+            warp += d;
+        }
+        warp
+    }
+
+    /// `evalshift`: the 2D warp & blend displacement in the face frame.
+    fn evalshift(p: usize, alpha: f64, l1: f64, l2: f64, l3: f64) -> (f64, f64) {
+        let w1 = l2 * l3 * 4.0 * evalwarp(p, l3 - l2) * (1.0 + (alpha * l1).powi(2));
+        let w2 = l1 * l3 * 4.0 * evalwarp(p, l1 - l3) * (1.0 + (alpha * l2).powi(2));
+        let w3 = l1 * l2 * 4.0 * evalwarp(p, l2 - l1) * (1.0 + (alpha * l3).powi(2));
+        let (sin2, cos2) = (2.0 * PI / 3.0).sin_cos();
+        let (sin4, cos4) = (4.0 * PI / 3.0).sin_cos();
+        (w1 + cos2 * w2 + cos4 * w3, sin2 * w2 + sin4 * w3)
+    }
+
+    /// `Nodes2D` point (equilateral) of the node with L2 = a0/p, L3 = a1/p, L1 = a2/p.
+    fn nodes2d(p: usize, a: &[usize; 4]) -> V3 {
+        let alpha = warp_blend_alpha(Simplex::Tri, p);
+        let n = p as f64;
+        let (l2, l3, l1) = (a[0] as f64 / n, a[1] as f64 / n, a[2] as f64 / n);
+        let mut x = -l2 + l3;
+        let mut y = (-l2 - l3 + 2.0 * l1) / 3f64.sqrt();
+        let w1 = 4.0 * l2 * l3 * warpfactor(p, l3 - l2) * (1.0 + (alpha * l1).powi(2));
+        let w2 = 4.0 * l1 * l3 * warpfactor(p, l1 - l3) * (1.0 + (alpha * l2).powi(2));
+        let w3 = 4.0 * l1 * l2 * warpfactor(p, l2 - l1) * (1.0 + (alpha * l3).powi(2));
+        x += w1 + (2.0 * PI / 3.0).cos() * w2 + (4.0 * PI / 3.0).cos() * w3;
+        y += (2.0 * PI / 3.0).sin() * w2 + (4.0 * PI / 3.0).sin() * w3;
+        [x, y, 0.0]
+    }
+
+    /// `Nodes3D` point (equilateral) of the node with L3, L4, L2, L1 = a / p.
+    fn nodes3d(p: usize, a: &[usize; 4], v: &[V3; 4]) -> V3 {
+        let alpha = warp_blend_alpha(Simplex::Tet, p);
+        let tol = 1e-10;
+        let t1 = [
+            unit(sub(v[1], v[0])),
+            unit(sub(v[1], v[0])),
+            unit(sub(v[2], v[1])),
+            unit(sub(v[2], v[0])),
+        ];
+        let t2 = [
+            unit(sub(v[2], mid(v[0], v[1]))),
+            unit(sub(v[3], mid(v[0], v[1]))),
+            unit(sub(v[3], mid(v[1], v[2]))),
+            unit(sub(v[3], mid(v[0], v[2]))),
+        ];
+        let n = p as f64;
+        let (l3, l4, l2, l1) = (
+            a[0] as f64 / n,
+            a[1] as f64 / n,
+            a[2] as f64 / n,
+            a[3] as f64 / n,
+        );
+        let mut shift = [0.0; 3];
+        for face in 0..4 {
+            let (la, lb, lc, ld) = match face {
+                0 => (l1, l2, l3, l4),
+                1 => (l2, l1, l3, l4),
+                2 => (l3, l1, l4, l2),
+                _ => (l4, l1, l3, l2),
+            };
+            let (w1, w2) = evalshift(p, alpha, lb, lc, ld);
+            let mut blend = lb * lc * ld;
+            let denom = (lb + 0.5 * la) * (lc + 0.5 * la) * (ld + 0.5 * la);
+            if denom > tol {
+                blend *= (1.0 + (alpha * la).powi(2)) / denom;
+            }
+            for c in 0..3 {
+                shift[c] += blend * (w1 * t1[face][c] + w2 * t2[face][c]);
+            }
+            if la < tol && [lb, lc, ld].iter().filter(|&&l| l > tol).count() < 3 {
+                for c in 0..3 {
+                    shift[c] = w1 * t1[face][c] + w2 * t2[face][c];
+                }
+            }
+        }
+        let mut x = [0.0; 3];
+        for c in 0..3 {
+            x[c] = l3 * v[0][c] + l4 * v[1][c] + l2 * v[2][c] + l1 * v[3][c] + shift[c];
+        }
+        x
+    }
+
+    #[test]
+    fn warp_blend_reproduces_hesthaven_nodes2d() {
+        let s3 = 3f64.sqrt();
+        let v = [
+            [-1.0, -1.0 / s3, 0.0],
+            [1.0, -1.0 / s3, 0.0],
+            [0.0, 2.0 / s3, 0.0],
+        ];
+        for p in 1..=15 {
+            let n = NodeSet::new(Simplex::Tri, p, NodeSpacing::Optimal);
+            for (i, a) in n.multi.iter().enumerate() {
+                let l = n.barycentric(i);
+                let e = nodes2d(p, a);
+                for c in 0..2 {
+                    let x: f64 = (0..3).map(|k| l[k] * v[k][c]).sum();
+                    assert!((x - e[c]).abs() < 1e-13, "p={p} {a:?}: {x} vs {}", e[c]);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn warp_blend_reproduces_hesthaven_nodes3d() {
+        let (s3, s6) = (3f64.sqrt(), 6f64.sqrt());
+        let v = [
+            [-1.0, -1.0 / s3, -1.0 / s6],
+            [1.0, -1.0 / s3, -1.0 / s6],
+            [0.0, 2.0 / s3, -1.0 / s6],
+            [0.0, 0.0, 3.0 / s6],
+        ];
+        for p in 1..=15 {
+            let n = NodeSet::new(Simplex::Tet, p, NodeSpacing::Optimal);
+            for (i, a) in n.multi.iter().enumerate() {
+                let l = n.barycentric(i);
+                let e = nodes3d(p, a, &v);
+                for c in 0..3 {
+                    let x: f64 = (0..4).map(|k| l[k] * v[k][c]).sum();
+                    assert!((x - e[c]).abs() < 1e-13, "p={p} {a:?}: {x} vs {}", e[c]);
+                }
+            }
+        }
+    }
+}
