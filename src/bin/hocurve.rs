@@ -104,7 +104,7 @@ impl Args {
     fn get(&self, name: &str) -> Option<&str> {
         self.flags.iter().rev().find(|(n, _)| n == name).map(|(_, v)| v.as_str())
     }
-    fn all(&self, name: &str) -> impl Iterator<Item = &str> {
+    fn all<'a>(&'a self, name: &'a str) -> impl Iterator<Item = &'a str> + 'a {
         self.flags.iter().filter(move |(n, _)| n == name).map(|(_, v)| v.as_str())
     }
     fn number<T: std::str::FromStr>(&self, name: &str, default: T) -> Result<T> {
