@@ -142,10 +142,15 @@ pub struct CurvedMesh {
 /// Check options before any work.
 pub fn validate_options(opts: &CurveOptions) -> Result<LinearElastic> {
     if !(1..=10).contains(&opts.order) {
-        return Err(Error::InvalidInput(format!("order must be between 1 and 10, got {}", opts.order)));
+        return Err(Error::InvalidInput(format!(
+            "order must be between 1 and 10, got {}",
+            opts.order
+        )));
     }
     if opts.increments == 0 {
-        return Err(Error::InvalidInput("the number of increments must be at least 1".into()));
+        return Err(Error::InvalidInput(
+            "the number of increments must be at least 1".into(),
+        ));
     }
     LinearElastic::try_from_young_poisson(opts.young, opts.poisson)
 }
@@ -201,15 +206,29 @@ pub fn curve(
     timings.project = t.elapsed().as_secs_f64();
 
     // 4. Solve in increments.
-    let increments = if opts.formulation == Formulation::Linear { 1 } else { opts.increments };
+    let increments = if opts.formulation == Formulation::Linear {
+        1
+    } else {
+        opts.increments
+    };
     let basis = LagrangeBasis::new(&nodes);
     let rule = simplex_rule(topo.simplex, 2 * opts.order);
     let cache = ElementCache::new(&basis, &rule);
     let kernel = LinearElasticKernel { cache, material };
-    let dofs = solve_increments(&mut mesh, &kernel, &ubar, increments, &mut timings, &mut tick)?;
+    let dofs = solve_increments(
+        &mut mesh,
+        &kernel,
+        &ubar,
+        increments,
+        &mut timings,
+        &mut tick,
+    )?;
     let cache = kernel.cache;
     if let Some(i) = mesh.coords.iter().position(|x| !x.is_finite()) {
-        return Err(Error::Solver(format!("the solution is not finite at node {}", i / dim)));
+        return Err(Error::Solver(format!(
+            "the solution is not finite at node {}",
+            i / dim
+        )));
     }
 
     // 5. Quality.
@@ -234,7 +253,12 @@ pub fn curve(
         quality: q,
         timings,
     };
-    Ok(CurvedMesh { mesh, straight, cell_quality, report })
+    Ok(CurvedMesh {
+        mesh,
+        straight,
+        cell_quality,
+        report,
+    })
 }
 
 /// Move `mesh` by the prescribed boundary displacement `ubar` (one value per
@@ -315,7 +339,9 @@ fn project_boundary(
         for i in 0..npc_lin {
             for j in i + 1..npc_lin {
                 let (a, b) = (linear.vertex(lv[i]), linear.vertex(lv[j]));
-                h = h.max(((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt());
+                h = h.max(
+                    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt(),
+                );
             }
         }
         for &n in mesh.cell(c) {
@@ -327,9 +353,11 @@ fn project_boundary(
         for chunk in ids.chunks(PROJECT_BATCH) {
             let pts: Vec<[f64; 3]> = chunk.iter().map(|&n| mesh.node(n)).collect();
             let mut proj = vec![[f64::NAN; 3]; pts.len()];
-            projector
-                .project(edim, tag, &pts, &mut proj)
-                .map_err(|m| Error::Projection(format!("projector failed on entity (dim {edim}, tag {tag}): {m}")))?;
+            projector.project(edim, tag, &pts, &mut proj).map_err(|m| {
+                Error::Projection(format!(
+                    "projector failed on entity (dim {edim}, tag {tag}): {m}"
+                ))
+            })?;
             for ((&n, x), y) in chunk.iter().zip(&pts).zip(&proj) {
                 let mut y = *y;
                 if mesh.dim() == 2 {
@@ -340,7 +368,8 @@ fn project_boundary(
                         "projector returned a non-finite point for node {n} on entity (dim {edim}, tag {tag})"
                     )));
                 }
-                let d = ((y[0] - x[0]).powi(2) + (y[1] - x[1]).powi(2) + (y[2] - x[2]).powi(2)).sqrt();
+                let d =
+                    ((y[0] - x[0]).powi(2) + (y[1] - x[1]).powi(2) + (y[2] - x[2]).powi(2)).sqrt();
                 if d > size[n] {
                     return Err(Error::Projection(format!(
                         "projector moved node {n} on entity (dim {edim}, tag {tag}) by {d:.3e}, more than the size \

@@ -15,11 +15,11 @@ pub mod quadrature;
 pub mod reference;
 
 pub use error::{Error, Result};
-pub mod mapping;
-pub mod material;
-pub mod solver;
-pub mod quality;
 pub mod assembly;
 pub mod curve;
+pub mod mapping;
+pub mod material;
+pub mod quality;
+pub mod solver;
 
 pub use curve::{curve, CurveOptions, CurveReport, CurvedMesh, Formulation};

@@ -103,7 +103,11 @@ impl DofMap {
                 col_ptr.push(row_idx.len());
             }
         }
-        SymmetricCsc { n: self.n_free, col_ptr, row_idx }
+        SymmetricCsc {
+            n: self.n_free,
+            col_ptr,
+            row_idx,
+        }
     }
 }
 
@@ -136,48 +140,60 @@ pub fn assemble_linear_elastic(
     let ndof_e = npc * dim;
     let values: Vec<AtomicU64> = (0..pattern.nnz()).map(|_| AtomicU64::new(0)).collect();
     let rhs: Vec<AtomicU64> = (0..dofs.n_free).map(|_| AtomicU64::new(0)).collect();
-    (0..mesh.n_cells())
-        .into_par_iter()
-        .try_for_each_init(
-            || (vec![0.0; ndof_e * ndof_e], vec![0.0; ndof_e], kernel.workspace()),
-            |(ke, xe, ws), c| -> Result<()> {
-                let cell = mesh.cell(c);
-                for (a, &n) in cell.iter().enumerate() {
-                    xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
-                }
-                kernel
-                    .stiffness_into(xe, ke, ws)
-                    .map_err(|q| Error::InvalidElement(format!("cell {c} has a non-positive Jacobian ({q:.3e})")))?;
-                for (ra, &na) in cell.iter().enumerate() {
-                    for i in 0..dim {
-                        let r = dofs.free[na * dim + i];
-                        if r == usize::MAX {
-                            continue;
-                        }
-                        let row = &ke[(ra * dim + i) * ndof_e..(ra * dim + i + 1) * ndof_e];
-                        let mut b = 0.0;
-                        for (cb, &nb) in cell.iter().enumerate() {
-                            for j in 0..dim {
-                                let dof = nb * dim + j;
-                                let s = dofs.free[dof];
-                                let k = row[cb * dim + j];
-                                if s == usize::MAX {
-                                    b -= k * prescribed[dof];
-                                } else if r >= s {
-                                    let pos = pattern.position(r, s).expect("pattern covers every cell coupling");
-                                    atomic_add(&values[pos], k);
-                                }
+    (0..mesh.n_cells()).into_par_iter().try_for_each_init(
+        || {
+            (
+                vec![0.0; ndof_e * ndof_e],
+                vec![0.0; ndof_e],
+                kernel.workspace(),
+            )
+        },
+        |(ke, xe, ws), c| -> Result<()> {
+            let cell = mesh.cell(c);
+            for (a, &n) in cell.iter().enumerate() {
+                xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
+            }
+            kernel.stiffness_into(xe, ke, ws).map_err(|q| {
+                Error::InvalidElement(format!("cell {c} has a non-positive Jacobian ({q:.3e})"))
+            })?;
+            for (ra, &na) in cell.iter().enumerate() {
+                for i in 0..dim {
+                    let r = dofs.free[na * dim + i];
+                    if r == usize::MAX {
+                        continue;
+                    }
+                    let row = &ke[(ra * dim + i) * ndof_e..(ra * dim + i + 1) * ndof_e];
+                    let mut b = 0.0;
+                    for (cb, &nb) in cell.iter().enumerate() {
+                        for j in 0..dim {
+                            let dof = nb * dim + j;
+                            let s = dofs.free[dof];
+                            let k = row[cb * dim + j];
+                            if s == usize::MAX {
+                                b -= k * prescribed[dof];
+                            } else if r >= s {
+                                let pos = pattern
+                                    .position(r, s)
+                                    .expect("pattern covers every cell coupling");
+                                atomic_add(&values[pos], k);
                             }
                         }
-                        if b != 0.0 {
-                            atomic_add(&rhs[r], b);
-                        }
+                    }
+                    if b != 0.0 {
+                        atomic_add(&rhs[r], b);
                     }
                 }
-                Ok(())
-            },
-        )?;
-    let values = values.into_iter().map(|v| f64::from_bits(v.into_inner())).collect();
-    let rhs = rhs.into_iter().map(|v| f64::from_bits(v.into_inner())).collect();
+            }
+            Ok(())
+        },
+    )?;
+    let values = values
+        .into_iter()
+        .map(|v| f64::from_bits(v.into_inner()))
+        .collect();
+    let rhs = rhs
+        .into_iter()
+        .map(|v| f64::from_bits(v.into_inner()))
+        .collect();
     Ok((values, rhs))
 }

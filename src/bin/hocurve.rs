@@ -64,7 +64,9 @@ fn main() -> ExitCode {
             println!("hocurve {}", env!("CARGO_PKG_VERSION"));
             return ExitCode::SUCCESS;
         }
-        Some(other) => Err(Error::InvalidInput(format!("unknown command '{other}'; see hocurve --help"))),
+        Some(other) => Err(Error::InvalidInput(format!(
+            "unknown command '{other}'; see hocurve --help"
+        ))),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -102,10 +104,17 @@ impl Args {
         Ok(Args { positional, flags })
     }
     fn get(&self, name: &str) -> Option<&str> {
-        self.flags.iter().rev().find(|(n, _)| n == name).map(|(_, v)| v.as_str())
+        self.flags
+            .iter()
+            .rev()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_str())
     }
     fn all<'a>(&'a self, name: &'a str) -> impl Iterator<Item = &'a str> + 'a {
-        self.flags.iter().filter(move |(n, _)| n == name).map(|(_, v)| v.as_str())
+        self.flags
+            .iter()
+            .filter(move |(n, _)| n == name)
+            .map(|(_, v)| v.as_str())
     }
     fn number<T: std::str::FromStr>(&self, name: &str, default: T) -> Result<T> {
         match self.get(name) {
@@ -118,15 +127,25 @@ impl Args {
 }
 
 fn options_from(args: &Args, default_order: usize) -> Result<CurveOptions> {
-    let mut o = CurveOptions { order: args.number("order", default_order)?, ..Default::default() };
+    let mut o = CurveOptions {
+        order: args.number("order", default_order)?,
+        ..Default::default()
+    };
     if let Some(f) = args.get("formulation") {
         o.formulation = Formulation::parse(f)?;
     }
     match args.get("material") {
         None | Some("linear") => {}
-        Some(m @ ("neo-hookean" | "mooney-rivlin" | "ni-mooney-rivlin" | "transversely-isotropic"
-        | "transversely-isotropic-linear")) => {
-            return Err(Error::InvalidInput(format!("material '{m}' is not implemented yet (available: linear)")))
+        Some(
+            m @ ("neo-hookean"
+            | "mooney-rivlin"
+            | "ni-mooney-rivlin"
+            | "transversely-isotropic"
+            | "transversely-isotropic-linear"),
+        ) => {
+            return Err(Error::InvalidInput(format!(
+                "material '{m}' is not implemented yet (available: linear)"
+            )))
         }
         Some(m) => return Err(Error::InvalidInput(format!("unknown material '{m}'"))),
     }
@@ -136,7 +155,11 @@ fn options_from(args: &Args, default_order: usize) -> Result<CurveOptions> {
     o.spacing = match args.get("spacing") {
         None | Some("optimal") => NodeSpacing::Optimal,
         Some("equispaced") => NodeSpacing::Equispaced,
-        Some(s) => return Err(Error::InvalidInput(format!("unknown spacing '{s}' (optimal or equispaced)"))),
+        Some(s) => {
+            return Err(Error::InvalidInput(format!(
+                "unknown spacing '{s}' (optimal or equispaced)"
+            )))
+        }
     };
     hocurve::curve::validate_options(&o)?;
     Ok(o)
@@ -167,7 +190,13 @@ fn run_case(
     let r = &c.report;
     eprintln!(
         "[{label}] p={} nodes={} dofs={} min Q3={:.4} mean Q3={:.4} invalid={} ({:.2} s)",
-        r.order, r.nodes, r.dofs, r.quality.min_q3, r.quality.mean_q3, r.quality.n_invalid, r.timings.total
+        r.order,
+        r.nodes,
+        r.dofs,
+        r.quality.min_q3,
+        r.quality.mean_q3,
+        r.quality.n_invalid,
+        r.timings.total
     );
     if r.quality.n_invalid > 0 {
         eprintln!(
@@ -181,7 +210,8 @@ fn run_case(
 fn cmd_demo(argv: &[String]) -> Result<()> {
     let args = Args::parse(argv, &["order", "output-dir", "increments", "poisson"])?;
     let dir = PathBuf::from(args.get("output-dir").unwrap_or("."));
-    std::fs::create_dir_all(&dir).map_err(|e| Error::Io(format!("cannot create {}: {e}", dir.display())))?;
+    std::fs::create_dir_all(&dir)
+        .map_err(|e| Error::Io(format!("cannot create {}: {e}", dir.display())))?;
     let opts = options_from(&args, 4)?;
     let c2 = cases::cylinder_channel_2d(48, 8, 100.0);
     let c3 = cases::sphere_in_box_3d(3, 3);
@@ -199,7 +229,11 @@ fn cmd_demo(argv: &[String]) -> Result<()> {
     let path = dir.join("demo-report.json");
     let body = format!(
         "{{\n{}\n}}\n",
-        reports.iter().map(|(n, r)| format!("  \"{}\": {}", json_escape(n), indent(r))).collect::<Vec<_>>().join(",\n")
+        reports
+            .iter()
+            .map(|(n, r)| format!("  \"{}\": {}", json_escape(n), indent(r)))
+            .collect::<Vec<_>>()
+            .join(",\n")
     );
     write_text_atomic(&path, &body)?;
     eprintln!("wrote {}", path.display());
@@ -209,15 +243,32 @@ fn cmd_demo(argv: &[String]) -> Result<()> {
 fn cmd_curve(argv: &[String]) -> Result<()> {
     let args = Args::parse(
         argv,
-        &["order", "geometry", "formulation", "material", "young", "poisson", "increments", "spacing", "output", "report"],
+        &[
+            "order",
+            "geometry",
+            "formulation",
+            "material",
+            "young",
+            "poisson",
+            "increments",
+            "spacing",
+            "output",
+            "report",
+        ],
     )?;
     let input = match args.positional.as_slice() {
         [one] => PathBuf::from(one),
         [] => return Err(Error::InvalidInput("curve needs an input .msh file".into())),
-        more => return Err(Error::InvalidInput(format!("curve takes one input file, got {}", more.len()))),
+        more => {
+            return Err(Error::InvalidInput(format!(
+                "curve takes one input file, got {}",
+                more.len()
+            )))
+        }
     };
     let output = PathBuf::from(
-        args.get("output").ok_or_else(|| Error::InvalidInput("curve needs --output OUT.msh|OUT.vtu".into()))?,
+        args.get("output")
+            .ok_or_else(|| Error::InvalidInput("curve needs --output OUT.msh|OUT.vtu".into()))?,
     );
     check_extension(&output)?;
     if args.get("order").is_none() {
@@ -229,10 +280,9 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
         let (tag, shape) = g
             .split_once('=')
             .ok_or_else(|| Error::InvalidInput(format!("--geometry '{g}': expected TAG=SHAPE")))?;
-        let tag: i32 = tag
-            .trim()
-            .parse()
-            .map_err(|_| Error::InvalidInput(format!("--geometry '{g}': '{tag}' is not an integer tag")))?;
+        let tag: i32 = tag.trim().parse().map_err(|_| {
+            Error::InvalidInput(format!("--geometry '{g}': '{tag}' is not an integer tag"))
+        })?;
         projector.insert(tag, Shape::parse(shape)?);
     }
     let msh = io::gmsh::read_msh(&input)?;
@@ -243,7 +293,10 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
     write_mesh(&output, &curved)?;
     eprintln!("wrote {}", output.display());
     if let Some(r) = args.get("report") {
-        write_text_atomic(Path::new(r), &(report_json(&curved, &opts, Some(&output)) + "\n"))?;
+        write_text_atomic(
+            Path::new(r),
+            &(report_json(&curved, &opts, Some(&output)) + "\n"),
+        )?;
         eprintln!("wrote {r}");
     }
     Ok(())
@@ -253,17 +306,29 @@ fn cmd_quality(argv: &[String]) -> Result<()> {
     let args = Args::parse(argv, &["report"])?;
     let input = match args.positional.as_slice() {
         [one] => PathBuf::from(one),
-        _ => return Err(Error::InvalidInput("quality needs exactly one .msh file".into())),
+        _ => {
+            return Err(Error::InvalidInput(
+                "quality needs exactly one .msh file".into(),
+            ))
+        }
     };
     let msh = io::gmsh::read_msh(&input)?;
     let (simplex, order, coords, gmsh_cells) = io::gmsh::high_order_cells(&msh)?;
     // gmsh's Lagrange elements interpolate at equispaced reference nodes.
     let nodes = NodeSet::new(simplex, order, NodeSpacing::Equispaced);
     let perm = ordering::permutation(&ordering::gmsh_multi_indices(simplex, order), &nodes.multi)
-        .ok_or_else(|| Error::Io("internal: gmsh ordering does not match the node set".into()))?;
+        .ok_or_else(|| {
+        Error::Io("internal: gmsh ordering does not match the node set".into())
+    })?;
     let npc = nodes.len();
-    let cells: Vec<usize> = gmsh_cells.chunks_exact(npc).flat_map(|c| perm.iter().map(move |&k| c[k])).collect();
-    let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(simplex, 2 * order));
+    let cells: Vec<usize> = gmsh_cells
+        .chunks_exact(npc)
+        .flat_map(|c| perm.iter().map(move |&k| c[k]))
+        .collect();
+    let cache = ElementCache::new(
+        &LagrangeBasis::new(&nodes),
+        &simplex_rule(simplex, 2 * order),
+    );
     let q = quality::summarize(&quality::cell_qualities(&cache, &coords, &cells));
     let body = format!(
         "{{\n  \"file\": \"{}\",\n  \"order\": {order},\n  \"cells\": {},\n  \"nodes\": {},\n{}\n}}",
@@ -282,7 +347,10 @@ fn cmd_quality(argv: &[String]) -> Result<()> {
 fn check_extension(path: &Path) -> Result<()> {
     match path.extension().and_then(|e| e.to_str()) {
         Some("msh") | Some("vtu") => Ok(()),
-        _ => Err(Error::InvalidInput(format!("output '{}' must end in .msh or .vtu", path.display()))),
+        _ => Err(Error::InvalidInput(format!(
+            "output '{}' must end in .msh or .vtu",
+            path.display()
+        ))),
     }
 }
 
@@ -298,7 +366,13 @@ fn write_mesh(path: &Path, curved: &CurvedMesh) -> Result<()> {
     } else {
         m.coords_at_nodes(&LagrangeBasis::new(&native), &equi)
     };
-    let view = CellMeshView { simplex: m.simplex, order: m.order, coords: &coords, cells: &m.cells, cell_multi: &equi.multi };
+    let view = CellMeshView {
+        simplex: m.simplex,
+        order: m.order,
+        coords: &coords,
+        cells: &m.cells,
+        cell_multi: &equi.multi,
+    };
     if path.extension().and_then(|e| e.to_str()) == Some("vtu") {
         let q3: Vec<f64> = curved.cell_quality.iter().map(|q| q.q3).collect();
         let q1: Vec<f64> = curved.cell_quality.iter().map(|q| q.q1).collect();

@@ -20,10 +20,14 @@ impl LinearElastic {
     /// 0 ≤ `poisson` < 0.5 (the paper's range is [0.001, 0.495]).
     pub fn try_from_young_poisson(young: f64, poisson: f64) -> Result<LinearElastic> {
         if !(young.is_finite() && young > 0.0) {
-            return Err(Error::InvalidInput(format!("Young's modulus must be positive and finite, got {young}")));
+            return Err(Error::InvalidInput(format!(
+                "Young's modulus must be positive and finite, got {young}"
+            )));
         }
         if !(poisson.is_finite() && (0.0..0.5).contains(&poisson)) {
-            return Err(Error::InvalidInput(format!("Poisson's ratio must be in [0, 0.5), got {poisson}")));
+            return Err(Error::InvalidInput(format!(
+                "Poisson's ratio must be in [0, 0.5), got {poisson}"
+            )));
         }
         Ok(LinearElastic {
             lambda: young * poisson / ((1.0 + poisson) * (1.0 - 2.0 * poisson)),
@@ -54,8 +58,18 @@ mod tests {
 
     #[test]
     fn out_of_range_parameters_are_rejected() {
-        for (e, nu) in [(0.0, 0.3), (-1.0, 0.3), (1.0, 0.5), (1.0, -0.1), (f64::NAN, 0.2), (1.0, f64::INFINITY)] {
-            assert!(LinearElastic::try_from_young_poisson(e, nu).is_err(), "{e} {nu}");
+        for (e, nu) in [
+            (0.0, 0.3),
+            (-1.0, 0.3),
+            (1.0, 0.5),
+            (1.0, -0.1),
+            (f64::NAN, 0.2),
+            (1.0, f64::INFINITY),
+        ] {
+            assert!(
+                LinearElastic::try_from_young_poisson(e, nu).is_err(),
+                "{e} {nu}"
+            );
         }
     }
 

@@ -34,7 +34,8 @@ pub fn signed_measure(dim: usize, x: &[[f64; 3]]) -> f64 {
     if dim == 2 {
         d(1, 0) * d(2, 1) - d(1, 1) * d(2, 0)
     } else {
-        d(1, 0) * (d(2, 1) * d(3, 2) - d(2, 2) * d(3, 1)) - d(1, 1) * (d(2, 0) * d(3, 2) - d(2, 2) * d(3, 0))
+        d(1, 0) * (d(2, 1) * d(3, 2) - d(2, 2) * d(3, 1))
+            - d(1, 1) * (d(2, 0) * d(3, 2) - d(2, 2) * d(3, 0))
             + d(1, 2) * (d(2, 0) * d(3, 1) - d(2, 1) * d(3, 0))
     }
 }
@@ -49,7 +50,9 @@ pub fn signed_measure(dim: usize, x: &[[f64; 3]]) -> f64 {
 pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
     let dim = mesh.dim;
     if dim != 2 && dim != 3 {
-        return Err(Error::InvalidInput(format!("dimension must be 2 or 3, got {dim}")));
+        return Err(Error::InvalidInput(format!(
+            "dimension must be 2 or 3, got {dim}"
+        )));
     }
     if mesh.coords.len() % dim != 0 {
         return Err(Error::InvalidInput(format!(
@@ -59,7 +62,10 @@ pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
     }
     let nv = mesh.n_vertices();
     if let Some(i) = mesh.coords.iter().position(|c| !c.is_finite()) {
-        return Err(Error::InvalidInput(format!("vertex {} has a non-finite coordinate", i / dim)));
+        return Err(Error::InvalidInput(format!(
+            "vertex {} has a non-finite coordinate",
+            i / dim
+        )));
     }
     let npc = dim + 1;
     if mesh.cells.is_empty() {
@@ -79,7 +85,9 @@ pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
             dim
         )));
     }
-    if mesh.feature_edges.len() % 2 != 0 || mesh.feature_edges.len() / 2 != mesh.feature_edge_tags.len() {
+    if mesh.feature_edges.len() % 2 != 0
+        || mesh.feature_edges.len() / 2 != mesh.feature_edge_tags.len()
+    {
         return Err(Error::InvalidInput(format!(
             "{} feature edge vertex indices and {} curve tags do not match",
             mesh.feature_edges.len(),
@@ -106,10 +114,14 @@ pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
         key[..npc].copy_from_slice(cell);
         key[..npc].sort_unstable();
         if key[..npc].windows(2).any(|w| w[0] == w[1]) {
-            return Err(Error::InvalidInput(format!("cell {c} repeats a vertex: {cell:?}")));
+            return Err(Error::InvalidInput(format!(
+                "cell {c} repeats a vertex: {cell:?}"
+            )));
         }
         if let Some(first) = seen.insert(key, c) {
-            return Err(Error::InvalidInput(format!("cells {first} and {c} have the same vertices")));
+            return Err(Error::InvalidInput(format!(
+                "cells {first} and {c} have the same vertices"
+            )));
         }
         let x: Vec<[f64; 3]> = cell.iter().map(|&v| mesh.vertex(v)).collect();
         let mut h2: f64 = 0.0;
@@ -120,7 +132,9 @@ pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
         }
         let m = signed_measure(dim, &x);
         if m.abs() <= 1e-12 * h2.sqrt().powi(dim as i32) {
-            return Err(Error::InvalidInput(format!("cell {c} is degenerate (zero measure)")));
+            return Err(Error::InvalidInput(format!(
+                "cell {c} is degenerate (zero measure)"
+            )));
         }
         if m < 0.0 {
             cell.swap(dim - 1, dim);
@@ -147,8 +161,9 @@ pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
 impl Topology {
     /// Build edges, faces and the boundary of a validated, oriented mesh.
     pub fn new(mesh: &LinearMesh) -> Result<Topology> {
-        let simplex = Simplex::from_dim(mesh.dim)
-            .ok_or_else(|| Error::InvalidInput(format!("dimension must be 2 or 3, got {}", mesh.dim)))?;
+        let simplex = Simplex::from_dim(mesh.dim).ok_or_else(|| {
+            Error::InvalidInput(format!("dimension must be 2 or 3, got {}", mesh.dim))
+        })?;
         let npc = mesh.dim + 1;
         let nc = mesh.n_cells();
         let local_edges = simplex.edges();
@@ -207,7 +222,11 @@ impl Topology {
         }
         let mut boundary_vertex = vec![false; mesh.n_vertices()];
         for &f in &boundary_facets {
-            let vs: &[usize] = if simplex == Simplex::Tet { &faces[f] } else { &edges[f] };
+            let vs: &[usize] = if simplex == Simplex::Tet {
+                &faces[f]
+            } else {
+                &edges[f]
+            };
             for &v in vs {
                 boundary_vertex[v] = true;
             }
@@ -225,12 +244,20 @@ impl Topology {
 
     /// Map from sorted edge to global edge id.
     pub fn edge_lookup(&self) -> HashMap<[usize; 2], usize> {
-        self.edges.iter().enumerate().map(|(i, &e)| (e, i)).collect()
+        self.edges
+            .iter()
+            .enumerate()
+            .map(|(i, &e)| (e, i))
+            .collect()
     }
 
     /// Map from sorted face to global face id (3D).
     pub fn face_lookup(&self) -> HashMap<[usize; 3], usize> {
-        self.faces.iter().enumerate().map(|(i, &f)| (f, i)).collect()
+        self.faces
+            .iter()
+            .enumerate()
+            .map(|(i, &f)| (f, i))
+            .collect()
     }
 }
 
@@ -271,12 +298,16 @@ mod tests {
     fn bad_cells_are_rejected_with_a_message() {
         let mut m = two_triangles();
         m.cells = vec![0, 1, 7];
-        assert!(matches!(validate_and_orient(&m), Err(Error::InvalidInput(s)) if s.contains("vertex 7")));
+        assert!(
+            matches!(validate_and_orient(&m), Err(Error::InvalidInput(s)) if s.contains("vertex 7"))
+        );
         m.cells = vec![0, 1, 1];
         assert!(validate_and_orient(&m).is_err());
         m.coords = vec![0.0, 0.0, 1.0, 0.0, 2.0, 0.0, 0.0, 1.0];
         m.cells = vec![0, 1, 2];
-        assert!(matches!(validate_and_orient(&m), Err(Error::InvalidInput(s)) if s.contains("degenerate")));
+        assert!(
+            matches!(validate_and_orient(&m), Err(Error::InvalidInput(s)) if s.contains("degenerate"))
+        );
         m.cells = vec![];
         assert!(validate_and_orient(&m).is_err());
         let mut m = two_triangles();
@@ -284,7 +315,9 @@ mod tests {
         assert!(validate_and_orient(&m).is_err());
         let mut m = two_triangles();
         m.cells = vec![0, 1, 2, 2, 1, 0];
-        assert!(matches!(validate_and_orient(&m), Err(Error::InvalidInput(s)) if s.contains("same vertices")));
+        assert!(
+            matches!(validate_and_orient(&m), Err(Error::InvalidInput(s)) if s.contains("same vertices"))
+        );
     }
 
     #[test]

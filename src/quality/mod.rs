@@ -90,16 +90,28 @@ pub fn element_quality(cache: &ElementCache, xe: &[f64]) -> ElementQuality {
         -1.0
     };
     let ratio = |lo: f64, hi: f64| if hi > 0.0 { (lo / hi).sqrt() } else { 0.0 };
-    let q = ElementQuality { q1: ratio(i1min, i1max), q2: ratio(i2min, i2max), q3 };
+    let q = ElementQuality {
+        q1: ratio(i1min, i1max),
+        q2: ratio(i2min, i2max),
+        q3,
+    };
     if q.q1.is_nan() || q.q2.is_nan() || q.q3.is_nan() {
         // Non-finite geometry: report as invalid rather than propagate NaN.
-        return ElementQuality { q1: 0.0, q2: 0.0, q3: -1.0 };
+        return ElementQuality {
+            q1: 0.0,
+            q2: 0.0,
+            q3: -1.0,
+        };
     }
     q
 }
 
 /// Quality of every cell of a mesh given its coordinates and connectivity.
-pub fn cell_qualities(cache: &ElementCache, coords: &[f64], cells: &[usize]) -> Vec<ElementQuality> {
+pub fn cell_qualities(
+    cache: &ElementCache,
+    coords: &[f64],
+    cells: &[usize],
+) -> Vec<ElementQuality> {
     let dim = cache.dim;
     let npc = cache.n_basis;
     cells
