@@ -159,3 +159,86 @@ pub fn summarize(q: &[ElementQuality]) -> MeshQuality {
     }
     m
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::quadrature::simplex_rule;
+    use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing, Simplex};
+
+    fn p2_triangle(delta: f64) -> (ElementCache, Vec<f64>) {
+        let nodes = NodeSet::new(Simplex::Tri, 2, NodeSpacing::Optimal);
+        let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(Simplex::Tri, 4));
+        // Straight nodes, then move the midpoint of edge (1,2) by δ(1,1):
+        // x = ξ + 4δξη, y = η + 4δξη, so J = 1 + 4δ(ξ + η).
+        let mut xe = Vec::new();
+        for (m, x) in nodes.multi.iter().zip(&nodes.coords) {
+            let moved = if m[1] == 1 && m[2] == 1 { delta } else { 0.0 };
+            xe.extend_from_slice(&[x[0] + moved, x[1] + moved]);
+        }
+        (cache, xe)
+    }
+
+    #[test]
+    fn straight_elements_have_unit_quality() {
+        for simplex in [Simplex::Tri, Simplex::Tet] {
+            let nodes = NodeSet::new(simplex, 3, NodeSpacing::Optimal);
+            let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(simplex, 6));
+            // An affine image of the reference element.
+            let xe: Vec<f64> = nodes
+                .coords
+                .iter()
+                .flat_map(|x| {
+                    let y = [
+                        2.0 * x[0] + 0.5 * x[1],
+                        0.3 * x[0] + 1.5 * x[1] - 0.2 * x[2],
+                        x[2] + 0.1 * x[0],
+                    ];
+                    y[..simplex.dim()].to_vec()
+                })
+                .collect();
+            let q = element_quality(&cache, &xe);
+            for v in [q.q1, q.q2, q.q3] {
+                assert!((v - 1.0).abs() < 1e-12, "{simplex:?}: {q:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn curved_p2_triangle_scaled_jacobian_matches_analytic_bounds() {
+        let delta = 0.1;
+        let (cache, xe) = p2_triangle(delta);
+        let q = element_quality(&cache, &xe);
+        // J = 1 + 4δ(ξ+η) ranges over [1, 1 + 4δ]; samples are interior.
+        let bound = 1.0 / (1.0 + 4.0 * delta);
+        assert!(q.q3 > bound && q.q3 < 1.0, "{q:?}");
+        // Exact sampled value: min/max of J over the rule's points.
+        let rule = simplex_rule(Simplex::Tri, 4);
+        let js: Vec<f64> = rule
+            .points
+            .iter()
+            .map(|x| 1.0 + 4.0 * delta * (x[0] + x[1]))
+            .collect();
+        let expect = js.iter().cloned().fold(f64::INFINITY, f64::min)
+            / js.iter().cloned().fold(0.0, f64::max);
+        assert!((q.q3 - expect).abs() < 1e-12, "{} vs {expect}", q.q3);
+        assert!(q.q1 < 1.0 && q.q1 > 0.5);
+        assert_eq!(q.q1, q.q2, "Q1 = Q2 in 2D");
+    }
+
+    #[test]
+    fn folded_p2_triangle_is_invalid_and_counted() {
+        let (cache, good) = p2_triangle(0.05);
+        let (_, bad) = p2_triangle(-0.4);
+        let qs = vec![
+            element_quality(&cache, &good),
+            element_quality(&cache, &bad),
+        ];
+        assert!(qs[1].q3 < 0.0);
+        let m = summarize(&qs);
+        assert_eq!(m.n_invalid, 1);
+        assert_eq!(m.worst_cell, 1);
+        assert_eq!(m.histogram.iter().sum::<usize>(), 1);
+        assert!((m.mean_q3 - (qs[0].q3 + qs[1].q3) / 2.0).abs() < 1e-15);
+    }
+}
