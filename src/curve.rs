@@ -223,7 +223,6 @@ pub fn curve(
         &mut timings,
         &mut tick,
     )?;
-    let cache = kernel.cache;
     if let Some(i) = mesh.coords.iter().position(|x| !x.is_finite()) {
         return Err(Error::Solver(format!(
             "the solution is not finite at node {}",
@@ -234,7 +233,8 @@ pub fn curve(
     // 5. Quality.
     let t = Instant::now();
     tick(Stage::Quality, 0, 1)?;
-    let cell_quality = quality::cell_qualities(&cache, &mesh.coords, &mesh.cells);
+    let cell_quality =
+        quality::cell_qualities(&quality::sampling_cache(&basis), &mesh.coords, &mesh.cells);
     let q = quality::summarize(&cell_quality);
     timings.quality = t.elapsed().as_secs_f64();
     timings.total = t0.elapsed().as_secs_f64();

@@ -18,9 +18,7 @@ use hocurve::cases;
 use hocurve::curve::{curve, CurveOptions, CurvedMesh, Formulation, Progress, Stage};
 use hocurve::geometry::shapes::{Shape, ShapeProjector};
 use hocurve::io;
-use hocurve::mapping::ElementCache;
 use hocurve::mesh::LinearMesh;
-use hocurve::quadrature::simplex_rule;
 use hocurve::quality::{self, MeshQuality};
 use hocurve::reference::{ordering, LagrangeBasis, NodeSet, NodeSpacing};
 use hocurve::{Error, Result};
@@ -325,10 +323,7 @@ fn cmd_quality(argv: &[String]) -> Result<()> {
         .chunks_exact(npc)
         .flat_map(|c| perm.iter().map(move |&k| c[k]))
         .collect();
-    let cache = ElementCache::new(
-        &LagrangeBasis::new(&nodes),
-        &simplex_rule(simplex, 2 * order),
-    );
+    let cache = quality::sampling_cache(&LagrangeBasis::new(&nodes));
     let q = quality::summarize(&quality::cell_qualities(&cache, &coords, &cells));
     let body = format!(
         "{{\n  \"file\": \"{}\",\n  \"order\": {order},\n  \"cells\": {},\n  \"nodes\": {},\n{}\n}}",

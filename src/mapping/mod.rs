@@ -30,6 +30,18 @@ impl ElementCache {
             values: tab.values,
         }
     }
+    /// Basis values and gradients at arbitrary `points`, without weights
+    /// (for sampling, e.g. quality measures).
+    pub fn at_points(basis: &LagrangeBasis, points: &[[f64; 3]]) -> ElementCache {
+        let tab = basis.tabulate(points);
+        ElementCache {
+            dim: tab.dim,
+            n_basis: tab.n_basis,
+            weights: vec![0.0; points.len()],
+            ref_grads: tab.grads,
+            values: tab.values,
+        }
+    }
     pub fn n_points(&self) -> usize {
         self.weights.len()
     }
