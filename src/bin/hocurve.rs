@@ -283,8 +283,29 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
         })?;
         projector.insert(tag, Shape::parse(shape)?);
     }
+    // Fail before computing if an output cannot be written.
+    for p in std::iter::once(output.as_path()).chain(args.get("report").map(Path::new)) {
+        let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        if !dir.is_dir() {
+            return Err(Error::Io(format!("cannot write {}: directory {} does not exist", p.display(), dir.display())));
+        }
+    }
     let msh = io::gmsh::read_msh(&input)?;
     let mut mesh = io::gmsh::to_linear_mesh(&msh)?;
+    for (&(dim, tag), shape) in projector.iter() {
+        let found = if dim == mesh.dim - 1 {
+            mesh.facet_tags.contains(&tag)
+        } else {
+            mesh.feature_edge_tags.contains(&tag)
+        };
+        if !found {
+            return Err(Error::InvalidInput(format!(
+                "--geometry {tag}={shape}: no boundary {} of {} has entity tag {tag}",
+                if dim == mesh.dim - 1 { "facet" } else { "feature curve" },
+                input.display()
+            )));
+        }
+    }
     // Facets and feature edges whose tag has no shape stay straight.
     mesh.retain_tags(|d, t| projector.get(d, t).is_some());
     let curved = run_case(&input.display().to_string(), &mesh, &projector, &opts)?;
