@@ -7,7 +7,7 @@
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-use crate::assembly::{assemble_linear_elastic, DofMap, LinearElasticKernel};
+use crate::assembly::{assemble_linear_elastic, color_cells, DofMap, LinearElasticKernel};
 use crate::geometry::Projector;
 use crate::mapping::ElementCache;
 use crate::material::LinearElastic;
@@ -284,13 +284,14 @@ pub fn solve_increments(
     }
     let t = Instant::now();
     let pattern = dofs.pattern(mesh);
+    let colors = color_cells(mesh);
     let chol = SparseCholesky::try_analyse(&pattern)?;
     timings.solve += t.elapsed().as_secs_f64();
     for k in 0..increments {
         tick(Stage::Increment, k, increments)?;
         let t = Instant::now();
         let (values, mut rhs) =
-            assemble_linear_elastic(mesh, &mesh.coords, &dofs, &pattern, kernel, &step).map_err(|e| match e {
+            assemble_linear_elastic(mesh, &mesh.coords, &dofs, &pattern, &colors, kernel, &step).map_err(|e| match e {
                 Error::InvalidElement(m) => Error::InvalidElement(format!(
                     "{m} at the start of increment {} of {increments}; try more increments or another Poisson ratio",
                     k + 1

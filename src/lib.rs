@@ -3,23 +3,26 @@
 //!
 //! The chain, each module knowing only the ones before it:
 //! `reference` → `quadrature` → `mapping` → `mesh` → `geometry` → `material`
-//! → `quality` → `assembly` → `solver` → `curve`; `io`, `ffi` and the CLI sit
-//! at the edges.
+//! → `quality` → `assembly` → `solver` → `curve` → `session`; `io`, `ffi`
+//! and the CLI sit at the edges, `cases` builds demo and test meshes.
 
-pub mod cases;
 pub mod error;
-pub mod geometry;
-pub mod io;
-pub mod mesh;
-pub mod quadrature;
-pub mod reference;
 
-pub use error::{Error, Result};
 pub mod assembly;
 pub mod curve;
+pub mod geometry;
 pub mod mapping;
 pub mod material;
+pub mod mesh;
+pub mod quadrature;
 pub mod quality;
+pub mod reference;
+pub mod session;
 pub mod solver;
 
+pub mod cases;
+pub mod ffi;
+pub mod io;
+
 pub use curve::{curve, CurveOptions, CurveReport, CurvedMesh, Formulation};
+pub use error::{Error, Result};

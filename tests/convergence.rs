@@ -5,6 +5,7 @@
 //! - the L2 error of interpolating a smooth f at the curved mesh's nodes,
 //!   integrated over the curved elements, and
 //! - the error of the domain's area/volume (the boundary approximation).
+//!
 //! Both must fall exponentially with p. A control shows that the straight-
 //! sided order-p mesh does not converge in area: the curving is what matters.
 

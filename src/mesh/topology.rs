@@ -54,7 +54,7 @@ pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
             "dimension must be 2 or 3, got {dim}"
         )));
     }
-    if mesh.coords.len() % dim != 0 {
+    if !mesh.coords.len().is_multiple_of(dim) {
         return Err(Error::InvalidInput(format!(
             "coordinate array length {} is not a multiple of the dimension {dim}",
             mesh.coords.len()
@@ -71,13 +71,13 @@ pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
     if mesh.cells.is_empty() {
         return Err(Error::InvalidInput("the mesh has no cells".into()));
     }
-    if mesh.cells.len() % npc != 0 {
+    if !mesh.cells.len().is_multiple_of(npc) {
         return Err(Error::InvalidInput(format!(
             "cell array length {} is not a multiple of {npc}",
             mesh.cells.len()
         )));
     }
-    if mesh.facets.len() % dim != 0 || mesh.facets.len() / dim != mesh.facet_tags.len() {
+    if !mesh.facets.len().is_multiple_of(dim) || mesh.facets.len() / dim != mesh.facet_tags.len() {
         return Err(Error::InvalidInput(format!(
             "{} facet vertex indices and {} facet tags do not match ({} vertices per facet)",
             mesh.facets.len(),
@@ -85,7 +85,7 @@ pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
             dim
         )));
     }
-    if mesh.feature_edges.len() % 2 != 0
+    if !mesh.feature_edges.len().is_multiple_of(2)
         || mesh.feature_edges.len() / 2 != mesh.feature_edge_tags.len()
     {
         return Err(Error::InvalidInput(format!(
@@ -186,8 +186,7 @@ impl Topology {
         }
         let mut faces = Vec::new();
         let mut cell_faces = Vec::new();
-        let boundary_facets: Vec<usize>;
-        if simplex == Simplex::Tet {
+        let boundary_facets: Vec<usize> = if simplex == Simplex::Tet {
             let mut face_id: HashMap<[usize; 3], usize> = HashMap::with_capacity(nc * 2);
             let mut face_cells: Vec<u32> = Vec::new();
             cell_faces.reserve(nc * 4);
@@ -210,7 +209,7 @@ impl Topology {
                     faces[f], face_cells[f]
                 )));
             }
-            boundary_facets = (0..faces.len()).filter(|&f| face_cells[f] == 1).collect();
+            (0..faces.len()).filter(|&f| face_cells[f] == 1).collect()
         } else {
             if let Some(e) = edge_cells.iter().position(|&n| n > 2) {
                 return Err(Error::InvalidInput(format!(
@@ -218,8 +217,8 @@ impl Topology {
                     edges[e], edge_cells[e]
                 )));
             }
-            boundary_facets = (0..edges.len()).filter(|&e| edge_cells[e] == 1).collect();
-        }
+            (0..edges.len()).filter(|&e| edge_cells[e] == 1).collect()
+        };
         let mut boundary_vertex = vec![false; mesh.n_vertices()];
         for &f in &boundary_facets {
             let vs: &[usize] = if simplex == Simplex::Tet {

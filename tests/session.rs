@@ -1,0 +1,112 @@
+//! Session semantics: setters validate, failed runs leave the mesh bitwise
+//! unchanged, cancellation works, results do not depend on the thread count.
+
+use hocurve::cases;
+use hocurve::curve::Progress;
+use hocurve::geometry::Projector;
+use hocurve::reference::NodeSpacing;
+use hocurve::session::Session;
+use hocurve::Error;
+
+/// Projects onto the circle r = 0.5, then spoils the answer as asked.
+struct Faulty(&'static str);
+
+impl Projector for Faulty {
+    fn project(
+        &self,
+        _: usize,
+        _: i32,
+        pts: &[[f64; 3]],
+        out: &mut [[f64; 3]],
+    ) -> Result<(), String> {
+        if self.0 == "error" {
+            return Err("CAD kernel said no".into());
+        }
+        for (o, p) in out.iter_mut().zip(pts) {
+            let r = (p[0] * p[0] + p[1] * p[1]).sqrt();
+            *o = [0.5 * p[0] / r, 0.5 * p[1] / r, 0.0];
+            match self.0 {
+                "nan" => o[0] = f64::NAN,
+                "far" => o[0] += 100.0,
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+}
+
+fn session() -> Session {
+    let case = cases::annulus_2d(0.5, 1.0, 12, 2);
+    let mut s = Session::try_new(case.mesh.clone()).unwrap();
+    let (facets, tags): (Vec<Vec<usize>>, Vec<i32>) = case
+        .mesh
+        .facets
+        .chunks_exact(2)
+        .zip(&case.mesh.facet_tags)
+        .filter(|(_, &t)| t == 1)
+        .map(|(f, &t)| (f.to_vec(), t))
+        .unzip();
+    s.set_boundary(facets.concat(), tags).unwrap();
+    s.set_order(3, NodeSpacing::Optimal).unwrap();
+    s
+}
+
+#[test]
+fn failed_runs_leave_the_mesh_bitwise_unchanged() {
+    for (mode, expect) in [
+        ("error", "projection"),
+        ("nan", "non-finite"),
+        ("far", "more than the size"),
+    ] {
+        let mut s = session();
+        s.set_projector(Some(Box::new(Faulty(mode))));
+        let before = s.mesh().coords.clone();
+        let e = s.run(2).unwrap_err();
+        assert!(matches!(e, Error::Projection(_)), "{mode}: {e}");
+        assert!(e.to_string().contains(expect), "{mode}: {e}");
+        assert_eq!(before, s.mesh().coords, "{mode}: mesh changed");
+        assert!(s.report().is_none());
+    }
+}
+
+#[test]
+fn cancelling_from_the_progress_callback_stops_the_run() {
+    let mut s = session();
+    s.set_projector(Some(Box::new(Faulty("ok"))));
+    let before = s.mesh().coords.clone();
+    s.set_progress(Some(Box::new(|p: &Progress| p.step < 2)));
+    assert_eq!(s.run(5).unwrap_err(), Error::Cancelled);
+    assert_eq!(before, s.mesh().coords);
+    s.set_progress(None);
+    s.run(5).unwrap();
+    assert_ne!(before, s.mesh().coords);
+    assert_eq!(s.quality().n_invalid, 0);
+}
+
+#[test]
+fn bad_settings_are_rejected_and_change_nothing() {
+    let mut s = session();
+    let before = s.mesh().coords.clone();
+    assert!(s.set_order(0, NodeSpacing::Optimal).is_err());
+    assert!(s.set_order(11, NodeSpacing::Optimal).is_err());
+    assert!(s.set_boundary(vec![0, 99999], vec![1]).is_err());
+    assert!(s.run(0).is_err());
+    assert_eq!(s.options().order, 3);
+    assert_eq!(before, s.mesh().coords);
+    // Tagged boundary without a projector is an error, not a silent straight mesh.
+    assert!(matches!(s.run(1), Err(Error::InvalidInput(m)) if m.contains("no projector")));
+}
+
+#[test]
+fn results_are_bitwise_identical_for_any_thread_count() {
+    let mut a = session();
+    let mut b = session();
+    a.set_projector(Some(Box::new(Faulty("ok"))));
+    b.set_projector(Some(Box::new(Faulty("ok"))));
+    a.set_threads(1);
+    b.set_threads(2);
+    a.run(3).unwrap();
+    b.run(3).unwrap();
+    // Coloured assembly is deterministic: bitwise the same.
+    assert_eq!(a.mesh().coords, b.mesh().coords);
+}
