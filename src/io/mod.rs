@@ -104,14 +104,15 @@ pub(crate) fn write_atomically(
     write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> Result<()>,
 ) -> Result<()> {
     let tmp = tmp_path(path);
-    let io = |e: std::io::Error, p: &Path| Error::Io(format!("{}: {e}", p.display()));
+    // Errors name the file the caller asked for, not the temporary one.
+    let io = |e: std::io::Error| Error::Io(format!("cannot write {}: {e}", path.display()));
     let result = (|| {
-        let file = std::fs::File::create(&tmp).map_err(|e| io(e, &tmp))?;
+        let file = std::fs::File::create(&tmp).map_err(io)?;
         let mut w = std::io::BufWriter::new(file);
         write(&mut w)?;
-        let file = w.into_inner().map_err(|e| io(e.into_error(), &tmp))?;
-        file.sync_all().map_err(|e| io(e, &tmp))?;
-        std::fs::rename(&tmp, path).map_err(|e| io(e, path))
+        let file = w.into_inner().map_err(|e| io(e.into_error()))?;
+        file.sync_all().map_err(io)?;
+        std::fs::rename(&tmp, path).map_err(io)
     })();
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);

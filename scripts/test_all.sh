@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# The project's whole test run (the README's test command, and CI's):
+#   1. cargo build --release     (the binary the Python suite drives)
+#   2. cargo test --release      (unit, integration and doc tests)
+#   3. pytest -q tests/python    (end-to-end: gmsh, meshio and VTK read what
+#                                 hocurve writes; quality agrees with gmsh)
+# Steps 2 and 3 both run even if one fails; the exit status is non-zero if
+# anything failed. The Python venv is made (or reused) by setup_python.sh.
+set -uo pipefail
+
+repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$repo"
+venv="${HOCURVE_VENV:-$repo/.venv}"
+export HOCURVE_VENV="$venv"
+
+step() { printf '\n==> %s\n' "$*"; }
+
+step "cargo build --release"
+if ! cargo build --release; then
+    echo "test_all: cargo build --release failed" >&2
+    exit 1
+fi
+
+step "cargo test --release"
+cargo test --release
+cargo_rc=$?
+
+step "python venv ($venv)"
+if ! "$repo/scripts/setup_python.sh"; then
+    echo "test_all: scripts/setup_python.sh failed" >&2
+    exit 1
+fi
+
+step "pytest -q tests/python"
+HOCURVE_BIN="${HOCURVE_BIN:-$repo/target/release/hocurve}" \
+    "$venv/bin/python" -m pytest -q -p no:cacheprovider tests/python
+py_rc=$?
+if [ "$py_rc" -eq 5 ]; then
+    echo "test_all: pytest collected no tests" >&2
+fi
+
+step "summary"
+echo "cargo test: $([ $cargo_rc -eq 0 ] && echo ok || echo "FAILED (exit $cargo_rc)")"
+echo "pytest:     $([ $py_rc -eq 0 ] && echo ok || echo "FAILED (exit $py_rc)")"
+[ "$cargo_rc" -eq 0 ] && [ "$py_rc" -eq 0 ]
