@@ -166,6 +166,21 @@ def hocurve_rule_points(dim, degree):
     return np.asarray(pts)
 
 
+def lattice_points(dim, order):
+    """The equispaced lattice of `order` on the reference simplex (all multi-indices)."""
+    pts = []
+    for k in range(order + 1 if dim == 3 else 1):
+        for j in range(order + 1 - k):
+            for i in range(order + 1 - k - j):
+                pts.append((i / order, j / order, k / order if dim == 3 else 0.0))
+    return np.asarray(pts)
+
+
+def hocurve_sample_points(dim, p):
+    """hocurve's quality sample set: the degree-2p rule plus the order-2p lattice."""
+    return np.vstack([hocurve_rule_points(dim, 2 * p), lattice_points(dim, 2 * p)])
+
+
 def scaled_jacobian(det):
     """Per element: min J / max J, or min J / max |J| when J ≤ 0 somewhere (hocurve's Q3)."""
     mn = det.min(axis=1)

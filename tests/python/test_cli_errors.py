@@ -108,9 +108,14 @@ def test_missing_arguments(hocurve, plate, tmp_path):
     assert_fails(hocurve, tmp_path, ["frobnicate"], "unknown command")
 
 
-def test_tag_without_facets_stays_straight(hocurve, plate, tmp_path):
-    """A tag that matches no facet is accepted: the mesh comes out straight-sided."""
+def test_tag_without_facets_is_an_error(hocurve, plate, tmp_path):
+    """A --geometry tag that matches no facet is a typo: refuse it, write nothing."""
     src, _g, _t = plate
-    r = hocurve.curve(src, 2, ["999=circle:0,0,0.5"], tmp_path / "o.msh", tmp_path / "r.json")
-    assert r["projected_nodes"] == 0 and r["max_projection_distance"] == 0
-    assert r["min_q3"] == pytest.approx(1.0) and r["invalid_elements"] == 0
+    assert_fails(hocurve, tmp_path, curve_args(src, tmp_path / "o.msh", geometry=["999=circle:0,0,0.5"]),
+                 "entity tag 999")
+
+
+def test_unwritable_report_fails_before_writing_the_mesh(hocurve, plate, tmp_path):
+    src, _g, tags = plate
+    args = curve_args(src, tmp_path / "o.msh", geometry=hole(tags)) + ["--report", tmp_path / "nodir" / "r.json"]
+    assert_fails(hocurve, tmp_path, args, "cannot write")

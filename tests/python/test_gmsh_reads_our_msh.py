@@ -119,11 +119,14 @@ def test_negative_jacobian_is_detected(gmsh, hocurve, tmp_path):
     assert qr["invalid_elements"] >= 1 and qr["min_q3"] <= 0
 
 
-@pytest.mark.xfail(reason="known limitation, reported: a tet with all four vertices on the sphere "
-                   "folds at its boundary, where hocurve's interior quadrature points do not look",
-                   strict=False)
-def test_tet_with_all_vertices_on_sphere(gmsh, hocurve, tmp_path):
-    """Box [-1,1]^3, h = 0.5: gmsh puts one tet with all four vertices on the sphere."""
+def test_tet_with_all_vertices_on_sphere_is_reported_invalid(gmsh, hocurve, tmp_path):
+    """Box [-1,1]^3, h = 0.5: gmsh puts one tet with all four vertices on the sphere.
+
+    With all its vertices and edges on the sphere such a tet has no interior
+    freedom and folds at p = 2 (a known limit of a posteriori curving; issue 7
+    adds adaptive stepping). hocurve must not hide it: its report counts the
+    same invalid element(s) that gmsh finds.
+    """
     p = 2
     src, geometry, _f, _h = linear_case(gmsh, 3, tmp_path, h=0.5, half=1.0)
     out, rep = tmp_path / "out.msh", tmp_path / "r.json"
@@ -135,4 +138,5 @@ def test_tet_with_all_vertices_on_sphere(gmsh, hocurve, tmp_path):
     n_bad = int((det.min(axis=1) <= 0).sum())
     print(f"\nhocurve: invalid_elements {r['invalid_elements']} min Q3 {r['min_q3']:.4f}; "
           f"gmsh: {n_bad} element(s) with det J <= 0 (min {det.min():.3g})")
-    assert n_bad == 0
+    assert n_bad >= 1, "the case should exercise an invalid element"
+    assert r["invalid_elements"] == n_bad and r["min_q3"] <= 0
