@@ -7,7 +7,7 @@
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-use crate::assembly::{assemble_linear_elastic, color_cells, DofMap, LinearElasticKernel};
+use crate::assembly::{assemble, color_cells, DofMap, LinearElasticKernel};
 use crate::geometry::Projector;
 use crate::mapping::ElementCache;
 use crate::material::LinearElastic;
@@ -291,7 +291,7 @@ pub fn solve_increments(
         tick(Stage::Increment, k, increments)?;
         let t = Instant::now();
         let (values, mut rhs) =
-            assemble_linear_elastic(mesh, &mesh.coords, &dofs, &pattern, &colors, kernel, &step).map_err(|e| match e {
+            assemble(mesh, &mesh.coords, &dofs, &pattern, &colors, kernel, &step, false).map_err(|e| match e {
                 Error::InvalidElement(m) => Error::InvalidElement(format!(
                     "{m} at the start of increment {} of {increments}; try more increments or another Poisson ratio",
                     k + 1

@@ -24,6 +24,27 @@ pub struct KernelWorkspace {
     m: Mat<f64>,
 }
 
+impl super::ElementKernel for LinearElasticKernel {
+    type Workspace = KernelWorkspace;
+    fn workspace(&self) -> KernelWorkspace {
+        LinearElasticKernel::workspace(self)
+    }
+    /// The ILE operator has no internal force: `re` is zeroed.
+    fn compute(
+        &self,
+        _cell: usize,
+        xe: &[f64],
+        ke: &mut [f64],
+        re: Option<&mut [f64]>,
+        ws: &mut KernelWorkspace,
+    ) -> Result<(), f64> {
+        if let Some(re) = re {
+            re.fill(0.0);
+        }
+        self.stiffness_into(xe, ke, ws)
+    }
+}
+
 impl LinearElasticKernel {
     pub fn workspace(&self) -> KernelWorkspace {
         let (n, d, nq) = (self.cache.n_basis, self.cache.dim, self.cache.n_points());

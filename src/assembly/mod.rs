@@ -168,20 +168,41 @@ fn add(slot: &AtomicU64, v: f64) {
     );
 }
 
+/// An element operator: the element matrix and, optionally, the element
+/// internal-force vector, on the element's current node coordinates.
+pub trait ElementKernel: Sync {
+    type Workspace: Send;
+    fn workspace(&self) -> Self::Workspace;
+    /// Fill `ke` (row-major, dof (a, i) = a·dim + i) and, when given, `re`
+    /// (internal forces ∫ σ : ∇N_a) for cell `cell` with node coordinates
+    /// `xe`. Returns `Err(det J)` if the element is inverted at a point.
+    fn compute(
+        &self,
+        cell: usize,
+        xe: &[f64],
+        ke: &mut [f64],
+        re: Option<&mut [f64]>,
+        ws: &mut Self::Workspace,
+    ) -> std::result::Result<(), f64>;
+}
+
 /// Assemble K_ff (values on `pattern`) and the right-hand side
-/// b_f = −K_fd u_d for the linear-elastic operator on the geometry `coords`.
+/// b_f = −K_fd u_d − R_f on the geometry `coords`, where R is the internal
+/// force when `residual` is set (IIL, CIL, Newton) and zero otherwise (ILE).
 ///
 /// `prescribed[dof]` is the Dirichlet value of each prescribed dof (ignored for
 /// free dofs). `colors` comes from [`color_cells`]. Fails if an element has
 /// a non-positive Jacobian somewhere.
-pub fn assemble_linear_elastic(
+#[allow(clippy::too_many_arguments)]
+pub fn assemble<K: ElementKernel>(
     mesh: &HighOrderMesh,
     coords: &[f64],
     dofs: &DofMap,
     pattern: &SymmetricCsc,
     colors: &[Vec<usize>],
-    kernel: &LinearElasticKernel,
+    kernel: &K,
     prescribed: &[f64],
+    residual: bool,
 ) -> Result<(Vec<f64>, Vec<f64>)> {
     let dim = mesh.dim();
     let npc = mesh.nodes_per_cell();
@@ -194,17 +215,28 @@ pub fn assemble_linear_elastic(
                 (
                     vec![0.0; ndof_e * ndof_e],
                     vec![0.0; ndof_e],
+                    vec![0.0; ndof_e],
                     kernel.workspace(),
                 )
             },
-            |(ke, xe, ws), &c| -> Result<()> {
+            |(ke, re, xe, ws), &c| -> Result<()> {
                 let cell = mesh.cell(c);
                 for (a, &n) in cell.iter().enumerate() {
                     xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
                 }
-                kernel.stiffness_into(xe, ke, ws).map_err(|q| {
-                    Error::InvalidElement(format!("cell {c} has a non-positive Jacobian ({q:.3e})"))
-                })?;
+                kernel
+                    .compute(
+                        c,
+                        xe,
+                        ke,
+                        if residual { Some(&mut re[..]) } else { None },
+                        ws,
+                    )
+                    .map_err(|q| {
+                        Error::InvalidElement(format!(
+                            "cell {c} has a non-positive Jacobian ({q:.3e})"
+                        ))
+                    })?;
                 for (ra, &na) in cell.iter().enumerate() {
                     for i in 0..dim {
                         let r = dofs.free[na * dim + i];
@@ -212,7 +244,7 @@ pub fn assemble_linear_elastic(
                             continue;
                         }
                         let row = &ke[(ra * dim + i) * ndof_e..(ra * dim + i + 1) * ndof_e];
-                        let mut b = 0.0;
+                        let mut b = if residual { -re[ra * dim + i] } else { 0.0 };
                         for (cb, &nb) in cell.iter().enumerate() {
                             for j in 0..dim {
                                 let dof = nb * dim + j;
@@ -305,7 +337,7 @@ mod tests {
                 .build()
                 .unwrap();
             pool.install(|| {
-                assemble_linear_elastic(
+                assemble(
                     &mesh,
                     &mesh.coords,
                     &dofs,
@@ -313,6 +345,7 @@ mod tests {
                     &colors,
                     &kernel,
                     &prescribed,
+                    false,
                 )
             })
             .unwrap()

@@ -285,9 +285,16 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
     }
     // Fail before computing if an output cannot be written.
     for p in std::iter::once(output.as_path()).chain(args.get("report").map(Path::new)) {
-        let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let dir = p
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
         if !dir.is_dir() {
-            return Err(Error::Io(format!("cannot write {}: directory {} does not exist", p.display(), dir.display())));
+            return Err(Error::Io(format!(
+                "cannot write {}: directory {} does not exist",
+                p.display(),
+                dir.display()
+            )));
         }
     }
     let msh = io::gmsh::read_msh(&input)?;
@@ -301,7 +308,11 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
         if !found {
             return Err(Error::InvalidInput(format!(
                 "--geometry {tag}={shape}: no boundary {} of {} has entity tag {tag}",
-                if dim == mesh.dim - 1 { "facet" } else { "feature curve" },
+                if dim == mesh.dim - 1 {
+                    "facet"
+                } else {
+                    "feature curve"
+                },
                 input.display()
             )));
         }
