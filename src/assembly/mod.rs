@@ -12,12 +12,14 @@
 //! in parallel, so every global entry receives its contributions in the same
 //! order whatever the number of threads: results are bitwise reproducible.
 
+mod hyperelastic;
 mod kernel;
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use rayon::prelude::*;
 
+pub use hyperelastic::{MaterialKernel, MaterialWorkspace, TangentMode};
 pub use kernel::{KernelWorkspace, LinearElasticKernel};
 
 use crate::mesh::{HighOrderMesh, NodeConstraint};
