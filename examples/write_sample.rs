@@ -13,10 +13,7 @@ use std::path::PathBuf;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
-    let out = PathBuf::from(
-        args.next()
-            .ok_or("usage: write_sample OUT_DIR [ORDER...]")?,
-    );
+    let out = PathBuf::from(args.next().ok_or("usage: write_sample OUT_DIR [ORDER...]")?);
     let mut orders: Vec<usize> = args.map(|a| a.parse()).collect::<Result<_, _>>()?;
     if orders.is_empty() {
         orders = vec![3, 6];
@@ -25,29 +22,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for p in orders {
         for simplex in [Simplex::Tri, Simplex::Tet] {
             let (coords, cells, multi) = sample(simplex, p);
-            let view = CellMeshView {
-                simplex,
-                order: p,
-                coords: &coords,
-                cells: &cells,
-                cell_multi: &multi,
-            };
-            let name = format!(
-                "{}_p{p}",
-                if simplex == Simplex::Tri {
-                    "tri"
-                } else {
-                    "tet"
-                }
-            );
+            let view = CellMeshView { simplex, order: p, coords: &coords, cells: &cells, cell_multi: &multi };
+            let name = format!("{}_p{p}", if simplex == Simplex::Tri { "tri" } else { "tet" });
             write_msh(&out.join(format!("{name}.msh")), &view)?;
             let ids: Vec<f64> = (0..view.n_cells()).map(|c| c as f64).collect();
-            write_vtu(
-                &out.join(format!("{name}.vtu")),
-                &view,
-                &[("x", &coords)],
-                &[("cell_id", &ids)],
-            )?;
+            write_vtu(&out.join(format!("{name}.vtu")), &view, &[("x", &coords)], &[("cell_id", &ids)])?;
             println!("{name}: {} nodes, {} cells", view.n_nodes(), view.n_cells());
         }
     }
@@ -59,10 +38,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 /// (neither gmsh's nor VTK's, so both writers must permute).
 fn sample(simplex: Simplex, p: usize) -> (Vec<f64>, Vec<usize>, Vec<[usize; 4]>) {
     let cells_xyz: Vec<Vec<[f64; 3]>> = match simplex {
-        Simplex::Tri => vec![
-            vec![[0., 0., 0.], [1., 0., 0.], [0., 1., 0.]],
-            vec![[1., 0., 0.], [1., 1., 0.], [0., 1., 0.]],
-        ],
+        Simplex::Tri => {
+            vec![vec![[0., 0., 0.], [1., 0., 0.], [0., 1., 0.]], vec![[1., 0., 0.], [1., 1., 0.], [0., 1., 0.]]]
+        }
         Simplex::Tet => vec![
             vec![[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.]],
             vec![[1., 0., 0.], [0., 1., 0.], [0., 0., 1.], [1., 1., 1.]],

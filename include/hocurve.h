@@ -8,9 +8,19 @@
 #include <stdint.h>
 
 /**
+ * Q1..Q5 of one element (Q4, Q5 are NaN without a fibre direction).
+ */
+typedef struct ElementQuality ElementQuality;
+
+/**
  * Opaque handle: one mesh being curved.
  */
 typedef struct HocMesh HocMesh;
+
+/**
+ * The constitutive models of SPEC §3, named as on the command line.
+ */
+typedef struct MaterialModel MaterialModel;
 
 /**
  * Status code returned by every function (0 = success).
@@ -71,6 +81,10 @@ typedef struct {
  * Local node order of the returned connectivity.
  */
 typedef int HocNodeOrdering;
+
+
+
+
 
 /**
  * Success.
@@ -143,27 +157,27 @@ typedef int HocNodeOrdering;
 #define HOC_MATERIAL_LINEAR_ELASTIC 0
 
 /**
- * Compressible neo-Hookean (not available yet).
+ * Compressible neo-Hookean.
  */
 #define HOC_MATERIAL_NEO_HOOKEAN 1
 
 /**
- * Compressible Mooney–Rivlin (not available yet).
+ * Compressible Mooney–Rivlin.
  */
 #define HOC_MATERIAL_MOONEY_RIVLIN 2
 
 /**
- * Nearly incompressible Mooney–Rivlin (not available yet).
+ * Nearly incompressible Mooney–Rivlin.
  */
 #define HOC_MATERIAL_NI_MOONEY_RIVLIN 3
 
 /**
- * Transversely isotropic hyperelastic (not available yet).
+ * Transversely isotropic hyperelastic (fibres: see hoc_mesh_set_fibres).
  */
 #define HOC_MATERIAL_TRANSVERSELY_ISOTROPIC 4
 
 /**
- * Transversely isotropic linear elastic (not available yet).
+ * Transversely isotropic linear elastic (for ILE).
  */
 #define HOC_MATERIAL_TRANSVERSELY_ISOTROPIC_LINEAR 5
 
@@ -178,17 +192,17 @@ typedef int HocNodeOrdering;
 #define HOC_FORMULATION_ILE 1
 
 /**
- * Inconsistent incrementally linearised (not available yet).
+ * Inconsistent incrementally linearised (needs a hyperelastic material).
  */
 #define HOC_FORMULATION_IIL 2
 
 /**
- * Consistent incrementally linearised (not available yet).
+ * Consistent incrementally linearised (needs a hyperelastic material).
  */
 #define HOC_FORMULATION_CIL 3
 
 /**
- * Newton–Raphson on the hyperelastic problem (not available yet).
+ * Newton–Raphson on the hyperelastic problem (needs a hyperelastic material).
  */
 #define HOC_FORMULATION_NONLINEAR 4
 
@@ -317,6 +331,30 @@ HocStatus hoc_mesh_set_material(HocMesh *mesh, HocMaterial model, double young, 
  * @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
  */
 HocStatus hoc_mesh_set_formulation(HocMesh *mesh, HocFormulation formulation);
+
+/**
+ * Newton–Raphson settings of HOC_FORMULATION_NONLINEAR: converged when
+ * ‖R‖/‖R₀‖ < `tolerance` (default 1e-5), at most `max_iterations` (default 30)
+ * iterations per increment.
+ *
+ * @param[in,out] mesh the handle
+ * @param[in] tolerance > 0
+ * @param[in] max_iterations ≥ 1
+ * @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
+ */
+HocStatus hoc_mesh_set_newton(HocMesh *mesh, double tolerance, int max_iterations);
+
+/**
+ * Fibre direction of every cell for the transversely isotropic materials
+ * (3 doubles per cell, also in 2D; normalised by hocurve). NULL restores the
+ * default: −x inside, tangent to the boundary on boundary cells.
+ *
+ * @param[in,out] mesh the handle
+ * @param[in] n_cells must equal the number of cells (ignored when `fibres` is NULL)
+ * @param[in] fibres `3 * n_cells` doubles, or NULL
+ * @return HOC_OK, HOC_ERROR_BUFFER_SIZE or HOC_ERROR_INVALID_ARGUMENT
+ */
+HocStatus hoc_mesh_set_fibres(HocMesh *mesh, size_t n_cells, const double *fibres);
 
 /**
  * Curve the mesh: project the tagged boundary and solve in `increments`

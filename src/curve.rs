@@ -7,15 +7,15 @@
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-use crate::assembly::{assemble, color_cells, DofMap, LinearElasticKernel};
+use crate::assembly::{assemble, color_cells, DofMap, ElementKernel, LinearElasticKernel, MaterialKernel, TangentMode};
 use crate::geometry::Projector;
 use crate::mapping::ElementCache;
-use crate::material::LinearElastic;
+use crate::material::{make_material, LinearElastic, MaterialModel};
 use crate::mesh::{validate_and_orient, HighOrderMesh, LinearMesh, NodeConstraint, Topology};
 use crate::quadrature::simplex_rule;
 use crate::quality::{self, ElementQuality, MeshQuality};
 use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
-use crate::solver::SparseCholesky;
+use crate::solver::{try_lu_solve_in_place, SparseCholesky, SymmetricCsc};
 use crate::{Error, Result};
 
 /// The solid-mechanics formulation (paper Table 1).
@@ -26,6 +26,12 @@ pub enum Formulation {
     Linear,
     /// Incremental linear elasticity: n solves, each on the updated geometry.
     Ile,
+    /// Inconsistent incrementally linearised: c_0 on Ω_n, residual stresses.
+    Iil,
+    /// Consistent incrementally linearised: c_n + geometric stiffness, residual.
+    Cil,
+    /// Newton–Raphson on the hyperelastic problem in each increment.
+    Nonlinear,
 }
 
 impl Formulation {
@@ -33,15 +39,18 @@ impl Formulation {
         match self {
             Formulation::Linear => "linear",
             Formulation::Ile => "ile",
+            Formulation::Iil => "iil",
+            Formulation::Cil => "cil",
+            Formulation::Nonlinear => "nonlinear",
         }
     }
     pub fn parse(s: &str) -> Result<Formulation> {
         match s.to_ascii_lowercase().as_str() {
             "linear" => Ok(Formulation::Linear),
             "ile" => Ok(Formulation::Ile),
-            "iil" | "cil" | "nonlinear" => Err(Error::InvalidInput(format!(
-                "formulation '{s}' is not implemented yet (available: linear, ile)"
-            ))),
+            "iil" => Ok(Formulation::Iil),
+            "cil" => Ok(Formulation::Cil),
+            "nonlinear" => Ok(Formulation::Nonlinear),
             _ => Err(Error::InvalidInput(format!(
                 "unknown formulation '{s}' (expected linear, ile, iil, cil or nonlinear)"
             ))),
@@ -62,6 +71,15 @@ pub struct CurveOptions {
     pub poisson: f64,
     /// Number of load increments n ≥ 1 (forced to 1 for `Linear`).
     pub increments: usize,
+    /// Constitutive model; IIL, CIL and NONLINEAR need a hyperelastic one.
+    pub material: MaterialModel,
+    /// Newton–Raphson: converged when ‖R‖/‖R₀‖ < tolerance (default 1e-5).
+    pub tolerance: f64,
+    /// Newton–Raphson: iterations per increment before giving up (default 30).
+    pub max_iterations: usize,
+    /// Fibre direction per cell for the transversely isotropic models; by
+    /// default −x inside and tangent to the boundary on boundary cells.
+    pub fibres: Option<Vec<[f64; 3]>>,
 }
 
 impl Default for CurveOptions {
@@ -75,6 +93,10 @@ impl Default for CurveOptions {
             young: 1e5,
             poisson: 0.45,
             increments: 10,
+            material: MaterialModel::LinearElastic,
+            tolerance: 1e-5,
+            max_iterations: 30,
+            fibres: None,
         }
     }
 }
@@ -112,6 +134,7 @@ pub struct Timings {
 pub struct CurveReport {
     pub order: usize,
     pub formulation: Formulation,
+    pub material: MaterialModel,
     pub young: f64,
     pub poisson: f64,
     pub increments: usize,
@@ -126,6 +149,8 @@ pub struct CurveReport {
     pub max_projection_distance: f64,
     pub quality: MeshQuality,
     pub timings: Timings,
+    /// NONLINEAR: ‖R‖/‖R₀‖ after each Newton iteration, per increment.
+    pub newton_history: Vec<Vec<f64>>,
 }
 
 /// The result of a successful run.
@@ -142,15 +167,10 @@ pub struct CurvedMesh {
 /// Check options before any work.
 pub fn validate_options(opts: &CurveOptions) -> Result<LinearElastic> {
     if !(1..=10).contains(&opts.order) {
-        return Err(Error::InvalidInput(format!(
-            "order must be between 1 and 10, got {}",
-            opts.order
-        )));
+        return Err(Error::InvalidInput(format!("order must be between 1 and 10, got {}", opts.order)));
     }
     if opts.increments == 0 {
-        return Err(Error::InvalidInput(
-            "the number of increments must be at least 1".into(),
-        ));
+        return Err(Error::InvalidInput("the number of increments must be at least 1".into()));
     }
     LinearElastic::try_from_young_poisson(opts.young, opts.poisson)
 }
@@ -206,41 +226,50 @@ pub fn curve(
     timings.project = t.elapsed().as_secs_f64();
 
     // 4. Solve in increments.
-    let increments = if opts.formulation == Formulation::Linear {
-        1
-    } else {
-        opts.increments
-    };
+    let increments = if opts.formulation == Formulation::Linear { 1 } else { opts.increments };
     let basis = LagrangeBasis::new(&nodes);
     let rule = simplex_rule(topo.simplex, 2 * opts.order);
     let cache = ElementCache::new(&basis, &rule);
-    let kernel = LinearElasticKernel { cache, material };
-    let dofs = solve_increments(
-        &mut mesh,
-        &kernel,
-        &ubar,
+    let model = make_material(opts.material, opts.young, opts.poisson)?;
+    let fibres = match &opts.fibres {
+        Some(f) => checked_fibres(f, mesh.n_cells())?,
+        None => default_fibres(&linear, &topo),
+    };
+    let stepping = Stepping {
         increments,
-        &mut timings,
-        &mut tick,
-    )?;
+        residual: matches!(opts.formulation, Formulation::Iil | Formulation::Cil),
+        newton: (opts.formulation == Formulation::Nonlinear).then_some((opts.tolerance, opts.max_iterations)),
+    };
+    let mode = match opts.formulation {
+        Formulation::Cil | Formulation::Nonlinear => TangentMode::Consistent,
+        _ => TangentMode::Initial,
+    };
+    let linear_iso = matches!(opts.formulation, Formulation::Linear | Formulation::Ile)
+        && !opts.material.is_transversely_isotropic();
+    let (dofs, newton_history) = if linear_iso {
+        // Every isotropic model is calibrated so that c(F = I) = c_lin: the fast kernel.
+        let kernel = LinearElasticKernel { cache: cache.clone(), material };
+        solve_increments(&mut mesh, &kernel, &ubar, stepping, &mut timings, &mut tick)?
+    } else {
+        let kernel = MaterialKernel::new(&mesh, &straight, &cache, model.as_ref(), mode, &fibres);
+        solve_increments(&mut mesh, &kernel, &ubar, stepping, &mut timings, &mut tick)?
+    };
     if let Some(i) = mesh.coords.iter().position(|x| !x.is_finite()) {
-        return Err(Error::Solver(format!(
-            "the solution is not finite at node {}",
-            i / dim
-        )));
+        return Err(Error::Solver(format!("the solution is not finite at node {}", i / dim)));
     }
 
     // 5. Quality.
     let t = Instant::now();
     tick(Stage::Quality, 0, 1)?;
-    let cell_quality =
-        quality::cell_qualities(&quality::sampling_cache(&basis), &mesh.coords, &mesh.cells);
+    let ti = opts.material.is_transversely_isotropic().then_some(&fibres[..]);
+    let cell_quality = quality::cell_qualities(&quality::sampling_cache(&basis), &mesh.coords, &mesh.cells, ti);
     let q = quality::summarize(&cell_quality);
     timings.quality = t.elapsed().as_secs_f64();
     timings.total = t0.elapsed().as_secs_f64();
     let report = CurveReport {
         order: opts.order,
         formulation: opts.formulation,
+        material: opts.material,
         young: opts.young,
         poisson: opts.poisson,
         increments,
@@ -252,62 +281,126 @@ pub fn curve(
         max_projection_distance: max_dist,
         quality: q,
         timings,
+        newton_history,
     };
-    Ok(CurvedMesh {
-        mesh,
-        straight,
-        cell_quality,
-        report,
-    })
+    Ok(CurvedMesh { mesh, straight, cell_quality, report })
+}
+
+/// How the load increments are driven (paper Table 1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Stepping {
+    /// Number of load increments n ≥ 1.
+    pub increments: usize,
+    /// Put the internal force −R(x_n) on the right-hand side (IIL, CIL, Newton).
+    pub residual: bool,
+    /// Newton–Raphson to ‖R_f‖/‖R_0‖ < tolerance in at most max_iterations (NONLINEAR).
+    pub newton: Option<(f64, usize)>,
+}
+
+/// Factor and solve with Cholesky; if the matrix is not positive definite
+/// (a CIL or Newton tangent can lose definiteness), fall back to sparse LU.
+fn solve_system(chol: &SparseCholesky, pattern: &SymmetricCsc, values: &[f64], rhs: &mut [f64]) -> Result<()> {
+    match chol.try_factor_solve_in_place(pattern, values, rhs) {
+        Err(Error::Solver(_)) => try_lu_solve_in_place(pattern, values, rhs),
+        r => r,
+    }
+}
+
+fn euclid(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
 
 /// Move `mesh` by the prescribed boundary displacement `ubar` (one value per
-/// dof; only the boundary entries are used) in `increments` steps of ILE:
-/// each step assembles the linear-elastic stiffness on the current geometry
-/// Ω_n, solves K_ff u_f = −K_fd ū/n, and updates x_{n+1} = x_n + u.
-/// Returns the number of free degrees of freedom.
-pub fn solve_increments(
+/// dof; only the boundary entries are used) in `stepping.increments` steps:
+/// each step assembles the kernel's matrix on the current geometry Ω_n and
+/// solves K_ff u_f = −K_fd ū/n (− R_f(x_n) with `residual`), then updates
+/// x_{n+1} = x_n + u; with `newton`, it then iterates K Δx = −R until
+/// convergence. Returns the number of free dofs and, for Newton, the relative
+/// residual history of each increment.
+pub fn solve_increments<K: ElementKernel>(
     mesh: &mut HighOrderMesh,
-    kernel: &LinearElasticKernel,
+    kernel: &K,
     ubar: &[f64],
-    increments: usize,
+    stepping: Stepping,
     timings: &mut Timings,
     tick: &mut dyn FnMut(Stage, usize, usize) -> Result<()>,
-) -> Result<usize> {
+) -> Result<(usize, Vec<Vec<f64>>)> {
+    let increments = stepping.increments;
     let dofs = DofMap::new(mesh);
     let step: Vec<f64> = ubar.iter().map(|u| u / increments as f64).collect();
+    let zero = vec![0.0; ubar.len()];
+    let mut history = Vec::new();
     if dofs.n_free == 0 || ubar.iter().all(|&u| u == 0.0) {
         for (x, u) in mesh.coords.iter_mut().zip(ubar) {
             *x += u;
         }
-        return Ok(dofs.n_free);
+        return Ok((dofs.n_free, history));
     }
     let t = Instant::now();
     let pattern = dofs.pattern(mesh);
     let colors = color_cells(mesh);
     let chol = SparseCholesky::try_analyse(&pattern)?;
     timings.solve += t.elapsed().as_secs_f64();
+    let residual = stepping.residual || stepping.newton.is_some();
     for k in 0..increments {
         tick(Stage::Increment, k, increments)?;
+        let context = |e: Error| match e {
+            Error::InvalidElement(m) => Error::InvalidElement(format!(
+                "{m} in increment {} of {increments}; try more increments or another Poisson ratio",
+                k + 1
+            )),
+            e => e,
+        };
         let t = Instant::now();
         let (values, mut rhs) =
-            assemble(mesh, &mesh.coords, &dofs, &pattern, &colors, kernel, &step, false).map_err(|e| match e {
-                Error::InvalidElement(m) => Error::InvalidElement(format!(
-                    "{m} at the start of increment {} of {increments}; try more increments or another Poisson ratio",
-                    k + 1
-                )),
-                e => e,
-            })?;
+            assemble(mesh, &mesh.coords, &dofs, &pattern, &colors, kernel, &step, residual).map_err(context)?;
         timings.assembly += t.elapsed().as_secs_f64();
+        let r0 = euclid(&rhs).max(f64::MIN_POSITIVE);
         let t = Instant::now();
-        chol.try_factor_solve_in_place(&pattern, &values, &mut rhs)?;
+        solve_system(&chol, &pattern, &values, &mut rhs)?;
         timings.solve += t.elapsed().as_secs_f64();
         for (dof, x) in mesh.coords.iter_mut().enumerate() {
             let f = dofs.free[dof];
             *x += if f == usize::MAX { step[dof] } else { rhs[f] };
         }
+        let Some((tolerance, max_iterations)) = stepping.newton else { continue };
+        let mut hist = vec![1.0];
+        let mut converged = false;
+        for _ in 0..max_iterations {
+            let t = Instant::now();
+            let (values, mut rhs) =
+                assemble(mesh, &mesh.coords, &dofs, &pattern, &colors, kernel, &zero, true).map_err(context)?;
+            timings.assembly += t.elapsed().as_secs_f64();
+            let ratio = euclid(&rhs) / r0;
+            hist.push(ratio);
+            if !ratio.is_finite() {
+                return Err(Error::Solver(format!("Newton residual is not finite in increment {}", k + 1)));
+            }
+            if ratio < tolerance {
+                converged = true;
+                break;
+            }
+            let t = Instant::now();
+            solve_system(&chol, &pattern, &values, &mut rhs)?;
+            timings.solve += t.elapsed().as_secs_f64();
+            for (dof, x) in mesh.coords.iter_mut().enumerate() {
+                let f = dofs.free[dof];
+                if f != usize::MAX {
+                    *x += rhs[f];
+                }
+            }
+        }
+        let last = *hist.last().expect("history starts with 1");
+        history.push(hist);
+        if !converged {
+            return Err(Error::Solver(format!(
+                "Newton-Raphson did not converge in {max_iterations} iterations in increment {} of {increments} \
+                 (relative residual {last:.2e}); try more increments, or the CIL or ILE formulation",
+                k + 1
+            )));
+        }
     }
-    Ok(dofs.n_free)
+    Ok((dofs.n_free, history))
 }
 
 /// Batch size of projector calls.
@@ -340,9 +433,7 @@ fn project_boundary(
         for i in 0..npc_lin {
             for j in i + 1..npc_lin {
                 let (a, b) = (linear.vertex(lv[i]), linear.vertex(lv[j]));
-                h = h.max(
-                    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt(),
-                );
+                h = h.max(((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt());
             }
         }
         for &n in mesh.cell(c) {
@@ -354,11 +445,9 @@ fn project_boundary(
         for chunk in ids.chunks(PROJECT_BATCH) {
             let pts: Vec<[f64; 3]> = chunk.iter().map(|&n| mesh.node(n)).collect();
             let mut proj = vec![[f64::NAN; 3]; pts.len()];
-            projector.project(edim, tag, &pts, &mut proj).map_err(|m| {
-                Error::Projection(format!(
-                    "projector failed on entity (dim {edim}, tag {tag}): {m}"
-                ))
-            })?;
+            projector
+                .project(edim, tag, &pts, &mut proj)
+                .map_err(|m| Error::Projection(format!("projector failed on entity (dim {edim}, tag {tag}): {m}")))?;
             for ((&n, x), y) in chunk.iter().zip(&pts).zip(&proj) {
                 let mut y = *y;
                 if mesh.dim() == 2 {
@@ -369,8 +458,7 @@ fn project_boundary(
                         "projector returned a non-finite point for node {n} on entity (dim {edim}, tag {tag})"
                     )));
                 }
-                let d =
-                    ((y[0] - x[0]).powi(2) + (y[1] - x[1]).powi(2) + (y[2] - x[2]).powi(2)).sqrt();
+                let d = ((y[0] - x[0]).powi(2) + (y[1] - x[1]).powi(2) + (y[2] - x[2]).powi(2)).sqrt();
                 if d > size[n] {
                     return Err(Error::Projection(format!(
                         "projector moved node {n} on entity (dim {edim}, tag {tag}) by {d:.3e}, more than the size \
@@ -383,4 +471,61 @@ fn project_boundary(
         }
     }
     Ok(out)
+}
+
+/// Normalise user fibres: one finite non-zero vector per cell.
+fn checked_fibres(f: &[[f64; 3]], n_cells: usize) -> Result<Vec<[f64; 3]>> {
+    if f.len() != n_cells {
+        return Err(Error::InvalidInput(format!("{} fibre directions given for {n_cells} cells", f.len())));
+    }
+    f.iter()
+        .enumerate()
+        .map(|(c, v)| {
+            let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            if n.is_finite() && n > 0.0 {
+                Ok([v[0] / n, v[1] / n, v[2] / n])
+            } else {
+                Err(Error::InvalidInput(format!("fibre direction of cell {c} is zero or not finite")))
+            }
+        })
+        .collect()
+}
+
+/// The paper's fibres: −x inside; on cells with a boundary facet, tangent to
+/// that facet (in 3D, −x projected onto the facet's plane, or an edge of the
+/// facet when −x is normal to it).
+pub fn default_fibres(linear: &LinearMesh, topo: &Topology) -> Vec<[f64; 3]> {
+    let dim = linear.dim;
+    let mut fibres = vec![[-1.0, 0.0, 0.0]; linear.n_cells()];
+    let unit = |v: [f64; 3]| {
+        let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        (n > 1e-12).then(|| [v[0] / n, v[1] / n, v[2] / n])
+    };
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let mut boundary = vec![false; if dim == 2 { topo.edges.len() } else { topo.faces.len() }];
+    for &f in &topo.boundary_facets {
+        boundary[f] = true;
+    }
+    for (c, fibre) in fibres.iter_mut().enumerate() {
+        if dim == 2 {
+            let ne = topo.simplex.edges().len();
+            if let Some(&e) = topo.cell_edges[c * ne..(c + 1) * ne].iter().find(|&&e| boundary[e]) {
+                let [a, b] = topo.edges[e];
+                if let Some(t) = unit(sub(linear.vertex(b), linear.vertex(a))) {
+                    *fibre = t;
+                }
+            }
+        } else if let Some(&f) = topo.cell_faces[c * 4..(c + 1) * 4].iter().find(|&&f| boundary[f]) {
+            let [a, b, d] = topo.faces[f].map(|v| linear.vertex(v));
+            let (u, v) = (sub(b, a), sub(d, a));
+            let n = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+            if let Some(n) = unit(n) {
+                let m = [-1.0, 0.0, 0.0];
+                let dot = m[0] * n[0];
+                let proj = [m[0] - dot * n[0], -dot * n[1], -dot * n[2]];
+                *fibre = unit(proj).or_else(|| unit(u)).unwrap_or(*fibre);
+            }
+        }
+    }
+    fibres
 }

@@ -10,6 +10,7 @@
 
 use crate::curve::{curve, validate_options, CurveOptions, CurveReport, Formulation, Progress};
 use crate::geometry::Projector;
+pub use crate::material::MaterialModel;
 use crate::mesh::{validate_and_orient, HighOrderMesh, LinearMesh, Topology};
 use crate::quality::{self, ElementQuality, MeshQuality};
 use crate::reference::{ordering, NodeSet, NodeSpacing};
@@ -27,13 +28,6 @@ pub enum NodeOrdering {
     Gmsh,
     /// VTK Lagrange cell node order.
     Vtk,
-}
-
-/// Material models. Only the linear elastic one is available yet.
-#[non_exhaustive]
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum MaterialModel {
-    LinearElastic,
 }
 
 /// See the module documentation.
@@ -57,10 +51,7 @@ impl Session {
     pub fn try_new(linear: LinearMesh) -> Result<Session> {
         let (linear, _) = validate_and_orient(&linear)?;
         let topo = Topology::new(&linear)?;
-        let opts = CurveOptions {
-            order: 1,
-            ..Default::default()
-        };
+        let opts = CurveOptions { order: 1, ..Default::default() };
         let (mesh, cell_quality, quality) = straight(&linear, &topo, &opts)?;
         Ok(Session {
             linear,
@@ -129,29 +120,46 @@ impl Session {
     }
 
     pub fn set_order(&mut self, order: usize, spacing: NodeSpacing) -> Result<()> {
-        let opts = CurveOptions {
-            order,
-            spacing,
-            ..self.opts.clone()
-        };
+        let opts = CurveOptions { order, spacing, ..self.opts.clone() };
         validate_options(&opts)?;
         self.reset(self.linear.clone(), opts)
     }
 
     pub fn set_material(&mut self, model: MaterialModel, young: f64, poisson: f64) -> Result<()> {
-        let MaterialModel::LinearElastic = model;
-        let opts = CurveOptions {
-            young,
-            poisson,
-            ..self.opts.clone()
-        };
+        let opts = CurveOptions { material: model, young, poisson, ..self.opts.clone() };
         validate_options(&opts)?;
         self.opts = opts;
         Ok(())
     }
 
+    /// The formulation; IIL, CIL and NONLINEAR need a hyperelastic material
+    /// (checked at the next run, so the two may be set in any order).
     pub fn set_formulation(&mut self, formulation: Formulation) {
         self.opts.formulation = formulation;
+    }
+
+    /// Newton–Raphson tolerance on ‖R‖/‖R₀‖ and iteration limit per increment.
+    pub fn set_newton(&mut self, tolerance: f64, max_iterations: usize) -> Result<()> {
+        let opts = CurveOptions { tolerance, max_iterations, ..self.opts.clone() };
+        validate_options(&opts)?;
+        self.opts = opts;
+        Ok(())
+    }
+
+    /// Fibre direction per cell for the transversely isotropic models (None:
+    /// the paper's default). Checked at the next run.
+    pub fn set_fibres(&mut self, fibres: Option<Vec<[f64; 3]>>) -> Result<()> {
+        if let Some(f) = &fibres {
+            if f.len() != self.linear.n_cells() {
+                return Err(Error::InvalidInput(format!(
+                    "{} fibre directions for {} cells",
+                    f.len(),
+                    self.linear.n_cells()
+                )));
+            }
+        }
+        self.opts.fibres = fibres;
+        Ok(())
     }
 
     pub fn set_projector(&mut self, projector: Option<Box<dyn Projector + Send>>) {
@@ -174,25 +182,18 @@ impl Session {
     /// Curve the mesh in `increments` load increments. On error the session
     /// is exactly as before the call.
     pub fn run(&mut self, increments: usize) -> Result<()> {
-        let opts = CurveOptions {
-            increments,
-            ..self.opts.clone()
-        };
+        let opts = CurveOptions { increments, ..self.opts.clone() };
         validate_options(&opts)?;
         let has_tags = !self.linear.facets.is_empty() || !self.linear.feature_edges.is_empty();
         if has_tags && self.projector.is_none() {
-            return Err(Error::InvalidInput(
-                "boundary facets are tagged but no projector is set".into(),
-            ));
+            return Err(Error::InvalidInput("boundary facets are tagged but no projector is set".into()));
         }
         if self.pool.is_none() {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(self.threads)
                 .thread_name(|i| format!("hocurve-{i}"))
                 .build()
-                .map_err(|e| {
-                    Error::InvalidInput(format!("cannot start {} threads: {e}", self.threads))
-                })?;
+                .map_err(|e| Error::InvalidInput(format!("cannot start {} threads: {e}", self.threads)))?;
             self.pool = Some(pool);
         }
         let none = NoProjector;
@@ -207,8 +208,7 @@ impl Session {
         };
         let linear = &self.linear;
         let pool = self.pool.as_ref().expect("pool was just built");
-        let curved =
-            pool.install(|| curve(linear, projector, &opts, &mut |p: &Progress| progress(p)))?;
+        let curved = pool.install(|| curve(linear, projector, &opts, &mut |p: &Progress| progress(p)))?;
         self.mesh = curved.mesh;
         self.quality = curved.report.quality.clone();
         self.cell_quality = curved.cell_quality;
@@ -225,12 +225,8 @@ impl Session {
             NodeOrdering::Gmsh => ordering::gmsh_multi_indices(m.simplex, m.order),
             NodeOrdering::Vtk => ordering::vtk_multi_indices(m.simplex, m.order),
         };
-        let perm = ordering::permutation(&nodes.multi, &target)
-            .expect("orderings are permutations of the node set");
-        m.cells
-            .chunks_exact(nodes.len())
-            .flat_map(|c| perm.iter().map(move |&k| c[k]))
-            .collect()
+        let perm = ordering::permutation(&nodes.multi, &target).expect("orderings are permutations of the node set");
+        m.cells.chunks_exact(nodes.len()).flat_map(|c| perm.iter().map(move |&k| c[k])).collect()
     }
 }
 
@@ -242,14 +238,7 @@ fn straight(
 ) -> Result<(HighOrderMesh, Vec<ElementQuality>, MeshQuality)> {
     let nodes = NodeSet::new(topo.simplex, opts.order, opts.spacing);
     let mesh = HighOrderMesh::elevate(linear, topo, &nodes, opts.spacing)?;
-    let cq = vec![
-        ElementQuality {
-            q1: 1.0,
-            q2: 1.0,
-            q3: 1.0
-        };
-        mesh.n_cells()
-    ];
+    let cq = vec![ElementQuality::PERFECT; mesh.n_cells()];
     let q = quality::summarize(&cq);
     Ok((mesh, cq, q))
 }
@@ -258,13 +247,7 @@ fn straight(
 struct NoProjector;
 
 impl Projector for NoProjector {
-    fn project(
-        &self,
-        d: usize,
-        t: i32,
-        _: &[[f64; 3]],
-        _: &mut [[f64; 3]],
-    ) -> std::result::Result<(), String> {
+    fn project(&self, d: usize, t: i32, _: &[[f64; 3]], _: &mut [[f64; 3]]) -> std::result::Result<(), String> {
         Err(format!("no projector is set (entity dim {d}, tag {t})"))
     }
 }

@@ -10,21 +10,14 @@ fn elevate(m: &LinearMesh, p: usize) -> hocurve::Result<(HighOrderMesh, NodeSet)
     let (m, _) = validate_and_orient(m)?;
     let topo = Topology::new(&m)?;
     let nodes = NodeSet::new(topo.simplex, p, NodeSpacing::Optimal);
-    Ok((
-        HighOrderMesh::elevate(&m, &topo, &nodes, NodeSpacing::Optimal)?,
-        nodes,
-    ))
+    Ok((HighOrderMesh::elevate(&m, &topo, &nodes, NodeSpacing::Optimal)?, nodes))
 }
 
 /// Every cell, recomputing each of its nodes from its own vertices, finds the
 /// global coordinate stored for that node: shared nodes are shared correctly.
 #[test]
 fn shared_nodes_agree_from_every_cell_2d_and_3d() {
-    for (mesh, p) in [
-        (common::square_mesh(3), 5),
-        (common::cube_mesh(2), 4),
-        (common::cube_mesh(2), 6),
-    ] {
+    for (mesh, p) in [(common::square_mesh(3), 5), (common::cube_mesh(2), 4), (common::cube_mesh(2), 6)] {
         let (ho, nodes) = elevate(&mesh, p).unwrap();
         let dim = ho.dim();
         let mut used = vec![false; ho.n_nodes()];
@@ -37,10 +30,7 @@ fn shared_nodes_agree_from_every_cell_2d_and_3d() {
                 let l0 = 1.0 - xi[..dim].iter().sum::<f64>();
                 for d in 0..dim {
                     let x = l0 * xv[0][d] + (0..dim).map(|i| xi[i] * xv[i + 1][d]).sum::<f64>();
-                    assert!(
-                        (x - ho.node(g)[d]).abs() < 1e-13,
-                        "cell {c} node {a} (global {g})"
-                    );
+                    assert!((x - ho.node(g)[d]).abs() < 1e-13, "cell {c} node {a} (global {g})");
                 }
             }
         }
@@ -103,35 +93,23 @@ fn classification_of_faces_edges_and_feature_curves() {
         let y = ho.node(i);
         y[0].abs() < 1e-15 && (y[2] - 1.0).abs() < 1e-15
     };
-    let ridge: Vec<usize> = (ho.n_vertices..ho.n_nodes())
-        .filter(|&i| on_ridge(i))
-        .collect();
+    let ridge: Vec<usize> = (ho.n_vertices..ho.n_nodes()).filter(|&i| on_ridge(i)).collect();
     assert_eq!(ridge.len(), 2 * (p - 1));
-    assert!(ridge
-        .iter()
-        .all(|&i| ho.constraint[i] == NodeConstraint::Fixed));
+    assert!(ridge.iter().all(|&i| ho.constraint[i] == NodeConstraint::Fixed));
     // ...unless the ridge is a feature curve.
-    let ridge_edges: Vec<[usize; 2]> = topo
-        .edges
-        .iter()
-        .filter(|e| e.iter().all(|&v| x(v) == 0.0 && z(v) == 1.0))
-        .copied()
-        .collect();
+    let ridge_edges: Vec<[usize; 2]> =
+        topo.edges.iter().filter(|e| e.iter().all(|&v| x(v) == 0.0 && z(v) == 1.0)).copied().collect();
     assert_eq!(ridge_edges.len(), 2);
     for e in &ridge_edges {
         mesh.feature_edges.extend_from_slice(e);
         mesh.feature_edge_tags.push(7);
     }
     let (ho, _) = elevate(&mesh, p).unwrap();
-    assert!(ridge
-        .iter()
-        .all(|&i| ho.constraint[i] == NodeConstraint::OnEntity { dim: 1, tag: 7 }));
-    assert!(
-        (0..ho.n_vertices).all(|v| ho.constraint[v] != NodeConstraint::Free || {
-            let y = ho.node(v);
-            y.iter().all(|&c| c > 0.0 && c < 1.0)
-        })
-    );
+    assert!(ridge.iter().all(|&i| ho.constraint[i] == NodeConstraint::OnEntity { dim: 1, tag: 7 }));
+    assert!((0..ho.n_vertices).all(|v| ho.constraint[v] != NodeConstraint::Free || {
+        let y = ho.node(v);
+        y.iter().all(|&c| c > 0.0 && c < 1.0)
+    }));
 }
 
 #[test]
@@ -139,14 +117,10 @@ fn facets_that_are_not_on_the_boundary_or_tagged_twice_are_rejected() {
     let mut mesh = common::cube_mesh(2);
     let (o, _) = validate_and_orient(&mesh).unwrap();
     let topo = Topology::new(&o).unwrap();
-    let interior = (0..topo.faces.len())
-        .find(|f| !topo.boundary_facets.contains(f))
-        .unwrap();
+    let interior = (0..topo.faces.len()).find(|f| !topo.boundary_facets.contains(f)).unwrap();
     mesh.facets.extend_from_slice(&topo.faces[interior]);
     mesh.facet_tags.push(1);
-    assert!(
-        matches!(elevate(&mesh, 2), Err(Error::InvalidInput(m)) if m.contains("not a boundary facet"))
-    );
+    assert!(matches!(elevate(&mesh, 2), Err(Error::InvalidInput(m)) if m.contains("not a boundary facet")));
     let mut mesh = common::cube_mesh(2);
     let b = topo.faces[topo.boundary_facets[0]];
     mesh.facets.extend_from_slice(&b);
@@ -154,14 +128,8 @@ fn facets_that_are_not_on_the_boundary_or_tagged_twice_are_rejected() {
     mesh.facet_tags.extend_from_slice(&[1, 2]);
     assert!(matches!(elevate(&mesh, 2), Err(Error::InvalidInput(m)) if m.contains("tagged twice")));
     let mut mesh = common::cube_mesh(2);
-    let interior_edge = topo
-        .edges
-        .iter()
-        .find(|e| e.iter().any(|&v| !topo.boundary_vertex[v]))
-        .unwrap();
+    let interior_edge = topo.edges.iter().find(|e| e.iter().any(|&v| !topo.boundary_vertex[v])).unwrap();
     mesh.feature_edges.extend_from_slice(interior_edge);
     mesh.feature_edge_tags.push(3);
-    assert!(
-        matches!(elevate(&mesh, 2), Err(Error::InvalidInput(m)) if m.contains("not an edge of the boundary"))
-    );
+    assert!(matches!(elevate(&mesh, 2), Err(Error::InvalidInput(m)) if m.contains("not an edge of the boundary")));
 }

@@ -17,10 +17,7 @@ struct Block {
 }
 
 fn data(name: &str) -> String {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests")
-        .join("data")
-        .join(name);
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests").join("data").join(name);
     std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
@@ -59,10 +56,7 @@ fn multi_index(simplex: Simplex, p: usize, x: [f64; 3]) -> [usize; 4] {
     let mut a = [0; 4];
     for i in 0..d {
         let v = x[i] * p as f64;
-        assert!(
-            (v - v.round()).abs() < 1e-9,
-            "{x:?} is not equispaced at p = {p}"
-        );
+        assert!((v - v.round()).abs() < 1e-9, "{x:?} is not equispaced at p = {p}");
         a[i + 1] = v.round() as usize;
     }
     a[0] = p - a[1..=d].iter().sum::<usize>();
@@ -78,11 +72,7 @@ fn check(file: &str, ours: fn(Simplex, usize) -> Vec<[usize; 4]>) {
                 .find(|b| b.simplex == simplex && b.order == p)
                 .unwrap_or_else(|| panic!("{file}: no {simplex:?} of order {p}"));
             assert_eq!(b.coords.len(), simplex.n_nodes(p));
-            let theirs: Vec<[usize; 4]> = b
-                .coords
-                .iter()
-                .map(|&x| multi_index(simplex, p, x))
-                .collect();
+            let theirs: Vec<[usize; 4]> = b.coords.iter().map(|&x| multi_index(simplex, p, x)).collect();
             assert_eq!(ours(simplex, p), theirs, "{file}: {simplex:?} order {p}");
         }
     }
@@ -111,20 +101,12 @@ fn gmsh_element_types_match_gmsh() {
 fn gmsh_element_shapes_match_gmsh() {
     let text = data("gmsh_element_types.txt");
     let mut n = 0;
-    for line in text
-        .lines()
-        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
-    {
+    for line in text.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty()) {
         let t: Vec<&str> = line.split_whitespace().collect();
         let ty: i32 = t[0].parse().unwrap();
         let dim: usize = t[1].parse().unwrap();
         let nodes: usize = t[3].parse().unwrap();
-        assert_eq!(
-            gmsh_element_shape(ty),
-            Some((dim, nodes)),
-            "type {ty} ({})",
-            t[4]
-        );
+        assert_eq!(gmsh_element_shape(ty), Some((dim, nodes)), "type {ty} ({})", t[4]);
         n += 1;
     }
     assert!(n > 100);

@@ -5,7 +5,7 @@
 mod common;
 
 use hocurve::assembly::LinearElasticKernel;
-use hocurve::curve::{solve_increments, Timings};
+use hocurve::curve::{solve_increments, Stepping, Timings};
 use hocurve::mapping::ElementCache;
 use hocurve::material::LinearElastic;
 use hocurve::mesh::{validate_and_orient, HighOrderMesh, LinearMesh, NodeConstraint, Topology};
@@ -14,15 +14,9 @@ use hocurve::reference::{LagrangeBasis, NodeSet, NodeSpacing};
 
 /// u(X) = A X + b with a general (non-symmetric) A.
 fn linear_field(x: &[f64], dim: usize) -> Vec<f64> {
-    let a = [
-        [0.05, -0.02, 0.03],
-        [0.01, 0.04, -0.03],
-        [-0.02, 0.02, 0.06],
-    ];
+    let a = [[0.05, -0.02, 0.03], [0.01, 0.04, -0.03], [-0.02, 0.02, 0.06]];
     let b = [0.01, -0.02, 0.015];
-    (0..dim)
-        .map(|i| b[i] + (0..dim).map(|j| a[i][j] * x[j]).sum::<f64>())
-        .collect()
+    (0..dim).map(|i| b[i] + (0..dim).map(|j| a[i][j] * x[j]).sum::<f64>()).collect()
 }
 
 fn run_patch(linear: &LinearMesh, order: usize, increments: usize) -> f64 {
@@ -43,24 +37,11 @@ fn run_patch(linear: &LinearMesh, order: usize, increments: usize) -> f64 {
         }
     }
     assert!(n_interior > 0, "the patch must have interior nodes");
-    let cache = ElementCache::new(
-        &LagrangeBasis::new(&nodes),
-        &simplex_rule(topo.simplex, 2 * order),
-    );
-    let kernel = LinearElasticKernel {
-        cache,
-        material: LinearElastic::try_from_young_poisson(1e5, 0.3).unwrap(),
-    };
+    let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(topo.simplex, 2 * order));
+    let kernel = LinearElasticKernel { cache, material: LinearElastic::try_from_young_poisson(1e5, 0.3).unwrap() };
     let mut t = Timings::default();
-    solve_increments(
-        &mut mesh,
-        &kernel,
-        &ubar,
-        increments,
-        &mut t,
-        &mut |_, _, _| Ok(()),
-    )
-    .unwrap();
+    let stepping = Stepping { increments, residual: false, newton: None };
+    solve_increments(&mut mesh, &kernel, &ubar, stepping, &mut t, &mut |_, _, _| Ok(())).unwrap();
     let mut err: f64 = 0.0;
     for n in 0..mesh.n_nodes() {
         let x0 = &straight[n * dim..(n + 1) * dim];

@@ -12,13 +12,7 @@ use hocurve::Error;
 struct Faulty(&'static str);
 
 impl Projector for Faulty {
-    fn project(
-        &self,
-        _: usize,
-        _: i32,
-        pts: &[[f64; 3]],
-        out: &mut [[f64; 3]],
-    ) -> Result<(), String> {
+    fn project(&self, _: usize, _: i32, pts: &[[f64; 3]], out: &mut [[f64; 3]]) -> Result<(), String> {
         if self.0 == "error" {
             return Err("CAD kernel said no".into());
         }
@@ -53,11 +47,7 @@ fn session() -> Session {
 
 #[test]
 fn failed_runs_leave_the_mesh_bitwise_unchanged() {
-    for (mode, expect) in [
-        ("error", "projection"),
-        ("nan", "non-finite"),
-        ("far", "more than the size"),
-    ] {
+    for (mode, expect) in [("error", "projection"), ("nan", "non-finite"), ("far", "more than the size")] {
         let mut s = session();
         s.set_projector(Some(Box::new(Faulty(mode))));
         let before = s.mesh().coords.clone();

@@ -68,13 +68,7 @@ impl<'a> MaterialKernel<'a> {
                 mapping::inverse(dim, &mapping::affine_jacobian(dim, &xv)).0
             })
             .collect();
-        MaterialKernel {
-            cache,
-            material,
-            mode,
-            straight_jinv,
-            fibres,
-        }
+        MaterialKernel { cache, material, mode, straight_jinv, fibres }
     }
 }
 
@@ -95,10 +89,7 @@ impl ElementKernel for MaterialKernel<'_> {
 
     fn workspace(&self) -> MaterialWorkspace {
         let (n, d) = (self.cache.n_basis, self.cache.dim);
-        MaterialWorkspace {
-            grad: vec![0.0; n * d],
-            t: vec![0.0; n * d * d * d],
-        }
+        MaterialWorkspace { grad: vec![0.0; n * d], t: vec![0.0; n * d * d * d] }
     }
 
     fn compute(
@@ -131,14 +122,7 @@ impl ElementKernel for MaterialKernel<'_> {
             mapping::physical_gradients_into(dim, rg, &jinv, &mut ws.grad);
             let f = pad(dim, &mapping::matmul(dim, &jx, &self.straight_jinv[cell]));
             let (sigma, tangent) = match &c0 {
-                Some(c0) => (
-                    if re.is_some() {
-                        self.material.stress(&f, fibre)
-                    } else {
-                        [[0.0; 3]; 3]
-                    },
-                    *c0,
-                ),
+                Some(c0) => (if re.is_some() { self.material.stress(&f, fibre) } else { [[0.0; 3]; 3] }, *c0),
                 None => self.material.stress_and_tangent(&f, fibre),
             };
             let w = c.weights[q] * det;
@@ -170,8 +154,7 @@ impl ElementKernel for MaterialKernel<'_> {
                     };
                     for i in 0..dim {
                         for j in 0..dim {
-                            let t = &ws.t[((a * dim + i) * dim + j) * dim
-                                ..((a * dim + i) * dim + j + 1) * dim];
+                            let t = &ws.t[((a * dim + i) * dim + j) * dim..((a * dim + i) * dim + j + 1) * dim];
                             let mut v: f64 = (0..dim).map(|l| t[l] * g[b * dim + l]).sum();
                             if i == j {
                                 v += gs;
@@ -184,8 +167,7 @@ impl ElementKernel for MaterialKernel<'_> {
             if let Some(r) = re.as_deref_mut() {
                 for a in 0..n {
                     for i in 0..dim {
-                        r[a * dim + i] +=
-                            w * (0..dim).map(|k| sigma[i][k] * g[a * dim + k]).sum::<f64>();
+                        r[a * dim + i] += w * (0..dim).map(|k| sigma[i][k] * g[a * dim + k]).sum::<f64>();
                     }
                 }
             }
@@ -206,11 +188,7 @@ mod tests {
     fn element(simplex: Simplex, p: usize) -> (HighOrderMesh, Vec<f64>, ElementCache) {
         let nodes = NodeSet::new(simplex, p, NodeSpacing::Optimal);
         let dim = simplex.dim();
-        let straight: Vec<f64> = nodes
-            .coords
-            .iter()
-            .flat_map(|x| x[..dim].to_vec())
-            .collect();
+        let straight: Vec<f64> = nodes.coords.iter().flat_map(|x| x[..dim].to_vec()).collect();
         let mesh = HighOrderMesh {
             simplex,
             order: p,
@@ -225,11 +203,7 @@ mod tests {
             .iter()
             .flat_map(|x| {
                 let b = 0.08 * x[0] * x[1];
-                let y = [
-                    1.1 * x[0] + 0.2 * x[1] + b,
-                    0.9 * x[1] - b + 0.05 * x[2],
-                    1.05 * x[2] + 0.1 * x[0] * x[2],
-                ];
+                let y = [1.1 * x[0] + 0.2 * x[1] + b, 0.9 * x[1] - b + 0.05 * x[2], 1.05 * x[2] + 0.1 * x[0] * x[2]];
                 y[..dim].to_vec()
             })
             .collect();
@@ -240,11 +214,8 @@ mod tests {
     #[test]
     fn consistent_tangent_is_the_derivative_of_the_residual() {
         for simplex in [Simplex::Tri, Simplex::Tet] {
-            for model in [
-                MaterialModel::NeoHookean,
-                MaterialModel::MooneyRivlin,
-                MaterialModel::TransverselyIsotropic,
-            ] {
+            for model in [MaterialModel::NeoHookean, MaterialModel::MooneyRivlin, MaterialModel::TransverselyIsotropic]
+            {
                 let (mesh, x, cache) = element(simplex, 2);
                 let material = make_material(model, 10.0, 0.3).unwrap();
                 let fibres = [[0.6, 0.8, 0.0]];
@@ -266,8 +237,7 @@ mod tests {
                     let (mut xp, mut xm) = (x.clone(), x.clone());
                     xp[col] += h;
                     xm[col] -= h;
-                    let (mut rp, mut rm, mut tmp) =
-                        (vec![0.0; nd], vec![0.0; nd], vec![0.0; nd * nd]);
+                    let (mut rp, mut rm, mut tmp) = (vec![0.0; nd], vec![0.0; nd], vec![0.0; nd * nd]);
                     k.compute(0, &xp, &mut tmp, Some(&mut rp), &mut ws).unwrap();
                     k.compute(0, &xm, &mut tmp, Some(&mut rm), &mut ws).unwrap();
                     for row in 0..nd {
@@ -291,14 +261,7 @@ mod tests {
         let (mesh, x, cache) = element(Simplex::Tet, 3);
         let material = make_material(MaterialModel::NeoHookean, 5.0, 0.35).unwrap();
         let fibres = [[1.0, 0.0, 0.0]];
-        let k = MaterialKernel::new(
-            &mesh,
-            &mesh.coords,
-            &cache,
-            material.as_ref(),
-            TangentMode::Initial,
-            &fibres,
-        );
+        let k = MaterialKernel::new(&mesh, &mesh.coords, &cache, material.as_ref(), TangentMode::Initial, &fibres);
         let lin = LinearElasticKernel {
             cache: cache.clone(),
             material: LinearElastic::try_from_young_poisson(5.0, 0.35).unwrap(),
@@ -306,8 +269,7 @@ mod tests {
         let nd = x.len();
         let (mut a, mut b) = (vec![0.0; nd * nd], vec![0.0; nd * nd]);
         k.compute(0, &x, &mut a, None, &mut k.workspace()).unwrap();
-        lin.stiffness_into(&x, &mut b, &mut lin.workspace())
-            .unwrap();
+        lin.stiffness_into(&x, &mut b, &mut lin.workspace()).unwrap();
         let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         for (u, v) in a.iter().zip(&b) {
             assert!((u - v).abs() < 1e-10 * scale);

@@ -59,12 +59,7 @@ impl LinearElasticKernel {
     /// Element stiffness into `ke` (row-major, dof (a, i) = a·dim + i) for the
     /// element with node coordinates `xe` (`dim` components per node).
     /// Returns `Err(det J)` if the Jacobian is not positive at a quadrature point.
-    pub fn stiffness_into(
-        &self,
-        xe: &[f64],
-        ke: &mut [f64],
-        ws: &mut KernelWorkspace,
-    ) -> Result<(), f64> {
+    pub fn stiffness_into(&self, xe: &[f64], ke: &mut [f64], ws: &mut KernelWorkspace) -> Result<(), f64> {
         let c = &self.cache;
         let (n, dim) = (c.n_basis, c.dim);
         for q in 0..c.n_points() {
@@ -85,14 +80,7 @@ impl LinearElasticKernel {
             }
         }
         // M = Awᵀ A: M[(i n + a), (j n + b)] = ∫ ∂_i N_a ∂_j N_b.
-        matmul(
-            ws.m.as_mut(),
-            Accum::Replace,
-            ws.aw.as_ref().transpose(),
-            ws.a.as_ref(),
-            1.0,
-            Par::Seq,
-        );
+        matmul(ws.m.as_mut(), Accum::Replace, ws.aw.as_ref().transpose(), ws.a.as_ref(), 1.0, Par::Seq);
         let (lam, mu) = (self.material.lambda, self.material.mu);
         let nd = n * dim;
         let m = &ws.m;
@@ -104,8 +92,7 @@ impl LinearElasticKernel {
                 }
                 for i in 0..dim {
                     for j in 0..dim {
-                        let mut v =
-                            lam * m[(i * n + a, j * n + b)] + mu * m[(j * n + a, i * n + b)];
+                        let mut v = lam * m[(i * n + a, j * n + b)] + mu * m[(j * n + a, i * n + b)];
                         if i == j {
                             v += mu * lap;
                         }
@@ -160,13 +147,8 @@ mod tests {
                     assert!(ke[r * nd + r] > 0.0);
                 }
                 // Rigid motions: translations and infinitesimal rotations.
-                let mut modes: Vec<Vec<f64>> = (0..dim)
-                    .map(|d| {
-                        (0..nd)
-                            .map(|i| if i % dim == d { 1.0 } else { 0.0 })
-                            .collect()
-                    })
-                    .collect();
+                let mut modes: Vec<Vec<f64>> =
+                    (0..dim).map(|d| (0..nd).map(|i| if i % dim == d { 1.0 } else { 0.0 }).collect()).collect();
                 let rot = |i: usize, j: usize| -> Vec<f64> {
                     let mut u = vec![0.0; nd];
                     for a in 0..nd / dim {
@@ -183,10 +165,7 @@ mod tests {
                 for u in &modes {
                     for r in 0..nd {
                         let f: f64 = (0..nd).map(|c| ke[r * nd + c] * u[c]).sum();
-                        assert!(
-                            f.abs() < 1e-10 * scale,
-                            "{simplex:?} p={p}: K·rigid = {f:e}"
-                        );
+                        assert!(f.abs() < 1e-10 * scale, "{simplex:?} p={p}: K·rigid = {f:e}");
                     }
                 }
             }

@@ -107,11 +107,7 @@ impl DofMap {
                 col_ptr.push(row_idx.len());
             }
         }
-        SymmetricCsc {
-            n: self.n_free,
-            col_ptr,
-            row_idx,
-        }
+        SymmetricCsc { n: self.n_free, col_ptr, row_idx }
     }
 }
 
@@ -148,9 +144,7 @@ pub fn color_cells(mesh: &HighOrderMesh) -> Vec<Vec<usize>> {
                 }
             }
         }
-        let k = (0..stamp.len())
-            .find(|&k| stamp[k] != c)
-            .unwrap_or(stamp.len());
+        let k = (0..stamp.len()).find(|&k| stamp[k] != c).unwrap_or(stamp.len());
         if k == stamp.len() {
             stamp.push(usize::MAX);
             groups.push(Vec::new());
@@ -164,10 +158,7 @@ pub fn color_cells(mesh: &HighOrderMesh) -> Vec<Vec<usize>> {
 /// Add `v` to a slot that no other thread touches during this colour.
 #[inline]
 fn add(slot: &AtomicU64, v: f64) {
-    slot.store(
-        (f64::from_bits(slot.load(Ordering::Relaxed)) + v).to_bits(),
-        Ordering::Relaxed,
-    );
+    slot.store((f64::from_bits(slot.load(Ordering::Relaxed)) + v).to_bits(), Ordering::Relaxed);
 }
 
 /// An element operator: the element matrix and, optionally, the element
@@ -213,32 +204,15 @@ pub fn assemble<K: ElementKernel>(
     let rhs: Vec<AtomicU64> = (0..dofs.n_free).map(|_| AtomicU64::new(0)).collect();
     for group in colors {
         group.par_iter().try_for_each_init(
-            || {
-                (
-                    vec![0.0; ndof_e * ndof_e],
-                    vec![0.0; ndof_e],
-                    vec![0.0; ndof_e],
-                    kernel.workspace(),
-                )
-            },
+            || (vec![0.0; ndof_e * ndof_e], vec![0.0; ndof_e], vec![0.0; ndof_e], kernel.workspace()),
             |(ke, re, xe, ws), &c| -> Result<()> {
                 let cell = mesh.cell(c);
                 for (a, &n) in cell.iter().enumerate() {
                     xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
                 }
                 kernel
-                    .compute(
-                        c,
-                        xe,
-                        ke,
-                        if residual { Some(&mut re[..]) } else { None },
-                        ws,
-                    )
-                    .map_err(|q| {
-                        Error::InvalidElement(format!(
-                            "cell {c} has a non-positive Jacobian ({q:.3e})"
-                        ))
-                    })?;
+                    .compute(c, xe, ke, if residual { Some(&mut re[..]) } else { None }, ws)
+                    .map_err(|q| Error::InvalidElement(format!("cell {c} has a non-positive Jacobian ({q:.3e})")))?;
                 for (ra, &na) in cell.iter().enumerate() {
                     for i in 0..dim {
                         let r = dofs.free[na * dim + i];
@@ -255,9 +229,7 @@ pub fn assemble<K: ElementKernel>(
                                 if s == usize::MAX {
                                     b -= k * prescribed[dof];
                                 } else if r >= s {
-                                    let pos = pattern
-                                        .position(r, s)
-                                        .expect("pattern covers every cell coupling");
+                                    let pos = pattern.position(r, s).expect("pattern covers every cell coupling");
                                     add(&values[pos], k);
                                 }
                             }
@@ -271,14 +243,8 @@ pub fn assemble<K: ElementKernel>(
             },
         )?;
     }
-    let values = values
-        .into_iter()
-        .map(|v| f64::from_bits(v.into_inner()))
-        .collect();
-    let rhs = rhs
-        .into_iter()
-        .map(|v| f64::from_bits(v.into_inner()))
-        .collect();
+    let values = values.into_iter().map(|v| f64::from_bits(v.into_inner())).collect();
+    let rhs = rhs.into_iter().map(|v| f64::from_bits(v.into_inner())).collect();
     Ok((values, rhs))
 }
 
@@ -326,46 +292,21 @@ mod tests {
         let pattern = dofs.pattern(&mesh);
         let colors = color_cells(&mesh);
         let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(topo.simplex, 4));
-        let kernel = LinearElasticKernel {
-            cache,
-            material: LinearElastic::try_from_young_poisson(1.0, 0.3).unwrap(),
-        };
-        let prescribed: Vec<f64> = (0..mesh.coords.len())
-            .map(|i| (i as f64 * 0.1).sin())
-            .collect();
+        let kernel = LinearElasticKernel { cache, material: LinearElastic::try_from_young_poisson(1.0, 0.3).unwrap() };
+        let prescribed: Vec<f64> = (0..mesh.coords.len()).map(|i| (i as f64 * 0.1).sin()).collect();
         let run = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| {
-                assemble(
-                    &mesh,
-                    &mesh.coords,
-                    &dofs,
-                    &pattern,
-                    &colors,
-                    &kernel,
-                    &prescribed,
-                    false,
-                )
-            })
-            .unwrap()
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| assemble(&mesh, &mesh.coords, &dofs, &pattern, &colors, &kernel, &prescribed, false))
+                .unwrap()
         };
         let serial = run(1);
         for _ in 0..3 {
             let par = run(4);
-            assert!(
-                serial.0 == par.0 && serial.1 == par.1,
-                "parallel assembly differs from serial"
-            );
+            assert!(serial.0 == par.0 && serial.1 == par.1, "parallel assembly differs from serial");
         }
         // And the matrix is the sum of element matrices: K·1 = 0 rows for interior nodes (rigid translation).
         let ones = vec![1.0; pattern.n];
         let k1 = pattern.sym_matvec(&serial.0, &ones);
-        assert!(
-            k1.iter().any(|v| v.abs() > 1e-12),
-            "K is not trivially zero"
-        );
+        assert!(k1.iter().any(|v| v.abs() > 1e-12), "K is not trivially zero");
     }
 }

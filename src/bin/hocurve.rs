@@ -18,6 +18,7 @@ use hocurve::cases;
 use hocurve::curve::{curve, CurveOptions, CurvedMesh, Formulation, Progress, Stage};
 use hocurve::geometry::shapes::{Shape, ShapeProjector};
 use hocurve::io;
+use hocurve::material::MaterialModel;
 use hocurve::mesh::LinearMesh;
 use hocurve::quality::{self, MeshQuality};
 use hocurve::reference::{ordering, LagrangeBasis, NodeSet, NodeSpacing};
@@ -62,9 +63,7 @@ fn main() -> ExitCode {
             println!("hocurve {}", env!("CARGO_PKG_VERSION"));
             return ExitCode::SUCCESS;
         }
-        Some(other) => Err(Error::InvalidInput(format!(
-            "unknown command '{other}'; see hocurve --help"
-        ))),
+        Some(other) => Err(Error::InvalidInput(format!("unknown command '{other}'; see hocurve --help"))),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -91,9 +90,7 @@ impl Args {
                 if !known.contains(&name) {
                     return Err(Error::InvalidInput(format!("unknown option --{name}")));
                 }
-                let v = it
-                    .next()
-                    .ok_or_else(|| Error::InvalidInput(format!("option --{name} needs a value")))?;
+                let v = it.next().ok_or_else(|| Error::InvalidInput(format!("option --{name} needs a value")))?;
                 flags.push((name.to_string(), v.clone()));
             } else {
                 positional.push(a.clone());
@@ -102,62 +99,41 @@ impl Args {
         Ok(Args { positional, flags })
     }
     fn get(&self, name: &str) -> Option<&str> {
-        self.flags
-            .iter()
-            .rev()
-            .find(|(n, _)| n == name)
-            .map(|(_, v)| v.as_str())
+        self.flags.iter().rev().find(|(n, _)| n == name).map(|(_, v)| v.as_str())
     }
     fn all<'a>(&'a self, name: &'a str) -> impl Iterator<Item = &'a str> + 'a {
-        self.flags
-            .iter()
-            .filter(move |(n, _)| n == name)
-            .map(|(_, v)| v.as_str())
+        self.flags.iter().filter(move |(n, _)| n == name).map(|(_, v)| v.as_str())
     }
     fn number<T: std::str::FromStr>(&self, name: &str, default: T) -> Result<T> {
         match self.get(name) {
             None => Ok(default),
-            Some(v) => v
-                .parse()
-                .map_err(|_| Error::InvalidInput(format!("--{name}: '{v}' is not a valid number"))),
+            Some(v) => v.parse().map_err(|_| Error::InvalidInput(format!("--{name}: '{v}' is not a valid number"))),
         }
     }
 }
 
 fn options_from(args: &Args, default_order: usize) -> Result<CurveOptions> {
-    let mut o = CurveOptions {
-        order: args.number("order", default_order)?,
-        ..Default::default()
-    };
+    let mut o = CurveOptions { order: args.number("order", default_order)?, ..Default::default() };
     if let Some(f) = args.get("formulation") {
         o.formulation = Formulation::parse(f)?;
     }
-    match args.get("material") {
-        None | Some("linear") => {}
-        Some(
-            m @ ("neo-hookean"
-            | "mooney-rivlin"
-            | "ni-mooney-rivlin"
-            | "transversely-isotropic"
-            | "transversely-isotropic-linear"),
-        ) => {
-            return Err(Error::InvalidInput(format!(
-                "material '{m}' is not implemented yet (available: linear)"
-            )))
+    // Default material: linear for LINEAR/ILE, neo-Hookean for the formulations that need a hyperelastic one.
+    o.material = match args.get("material") {
+        Some(m) => MaterialModel::parse(m)?,
+        None if matches!(o.formulation, Formulation::Iil | Formulation::Cil | Formulation::Nonlinear) => {
+            MaterialModel::NeoHookean
         }
-        Some(m) => return Err(Error::InvalidInput(format!("unknown material '{m}'"))),
-    }
+        None => MaterialModel::LinearElastic,
+    };
+    o.tolerance = args.number("tolerance", o.tolerance)?;
+    o.max_iterations = args.number("max-iterations", o.max_iterations)?;
     o.young = args.number("young", o.young)?;
     o.poisson = args.number("poisson", o.poisson)?;
     o.increments = args.number("increments", o.increments)?;
     o.spacing = match args.get("spacing") {
         None | Some("optimal") => NodeSpacing::Optimal,
         Some("equispaced") => NodeSpacing::Equispaced,
-        Some(s) => {
-            return Err(Error::InvalidInput(format!(
-                "unknown spacing '{s}' (optimal or equispaced)"
-            )))
-        }
+        Some(s) => return Err(Error::InvalidInput(format!("unknown spacing '{s}' (optimal or equispaced)"))),
     };
     hocurve::curve::validate_options(&o)?;
     Ok(o)
@@ -177,24 +153,13 @@ fn progress_printer(label: String) -> impl FnMut(&Progress) -> bool {
     }
 }
 
-fn run_case(
-    label: &str,
-    mesh: &LinearMesh,
-    projector: &ShapeProjector,
-    opts: &CurveOptions,
-) -> Result<CurvedMesh> {
+fn run_case(label: &str, mesh: &LinearMesh, projector: &ShapeProjector, opts: &CurveOptions) -> Result<CurvedMesh> {
     let mut progress = progress_printer(label.to_string());
     let c = curve(mesh, projector, opts, &mut progress)?;
     let r = &c.report;
     eprintln!(
         "[{label}] p={} nodes={} dofs={} min Q3={:.4} mean Q3={:.4} invalid={} ({:.2} s)",
-        r.order,
-        r.nodes,
-        r.dofs,
-        r.quality.min_q3,
-        r.quality.mean_q3,
-        r.quality.n_invalid,
-        r.timings.total
+        r.order, r.nodes, r.dofs, r.quality.min_q3, r.quality.mean_q3, r.quality.n_invalid, r.timings.total
     );
     if r.quality.n_invalid > 0 {
         eprintln!(
@@ -206,10 +171,9 @@ fn run_case(
 }
 
 fn cmd_demo(argv: &[String]) -> Result<()> {
-    let args = Args::parse(argv, &["order", "output-dir", "increments", "poisson"])?;
+    let args = Args::parse(argv, &["order", "output-dir", "increments", "poisson", "formulation", "material"])?;
     let dir = PathBuf::from(args.get("output-dir").unwrap_or("."));
-    std::fs::create_dir_all(&dir)
-        .map_err(|e| Error::Io(format!("cannot create {}: {e}", dir.display())))?;
+    std::fs::create_dir_all(&dir).map_err(|e| Error::Io(format!("cannot create {}: {e}", dir.display())))?;
     let opts = options_from(&args, 4)?;
     let c2 = cases::cylinder_channel_2d(48, 8, 100.0);
     let c3 = cases::sphere_in_box_3d(3, 3);
@@ -227,11 +191,7 @@ fn cmd_demo(argv: &[String]) -> Result<()> {
     let path = dir.join("demo-report.json");
     let body = format!(
         "{{\n{}\n}}\n",
-        reports
-            .iter()
-            .map(|(n, r)| format!("  \"{}\": {}", json_escape(n), indent(r)))
-            .collect::<Vec<_>>()
-            .join(",\n")
+        reports.iter().map(|(n, r)| format!("  \"{}\": {}", json_escape(n), indent(r))).collect::<Vec<_>>().join(",\n")
     );
     write_text_atomic(&path, &body)?;
     eprintln!("wrote {}", path.display());
@@ -257,16 +217,10 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
     let input = match args.positional.as_slice() {
         [one] => PathBuf::from(one),
         [] => return Err(Error::InvalidInput("curve needs an input .msh file".into())),
-        more => {
-            return Err(Error::InvalidInput(format!(
-                "curve takes one input file, got {}",
-                more.len()
-            )))
-        }
+        more => return Err(Error::InvalidInput(format!("curve takes one input file, got {}", more.len()))),
     };
     let output = PathBuf::from(
-        args.get("output")
-            .ok_or_else(|| Error::InvalidInput("curve needs --output OUT.msh|OUT.vtu".into()))?,
+        args.get("output").ok_or_else(|| Error::InvalidInput("curve needs --output OUT.msh|OUT.vtu".into()))?,
     );
     io::check_mesh_extension(&output)?;
     if args.get("order").is_none() {
@@ -275,44 +229,30 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
     let opts = options_from(&args, 2)?;
     let mut projector = ShapeProjector::new();
     for g in args.all("geometry") {
-        let (tag, shape) = g
-            .split_once('=')
-            .ok_or_else(|| Error::InvalidInput(format!("--geometry '{g}': expected TAG=SHAPE")))?;
-        let tag: i32 = tag.trim().parse().map_err(|_| {
-            Error::InvalidInput(format!("--geometry '{g}': '{tag}' is not an integer tag"))
-        })?;
+        let (tag, shape) =
+            g.split_once('=').ok_or_else(|| Error::InvalidInput(format!("--geometry '{g}': expected TAG=SHAPE")))?;
+        let tag: i32 = tag
+            .trim()
+            .parse()
+            .map_err(|_| Error::InvalidInput(format!("--geometry '{g}': '{tag}' is not an integer tag")))?;
         projector.insert(tag, Shape::parse(shape)?);
     }
     // Fail before computing if an output cannot be written.
     for p in std::iter::once(output.as_path()).chain(args.get("report").map(Path::new)) {
-        let dir = p
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
+        let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
         if !dir.is_dir() {
-            return Err(Error::Io(format!(
-                "cannot write {}: directory {} does not exist",
-                p.display(),
-                dir.display()
-            )));
+            return Err(Error::Io(format!("cannot write {}: directory {} does not exist", p.display(), dir.display())));
         }
     }
     let msh = io::gmsh::read_msh(&input)?;
     let mut mesh = io::gmsh::to_linear_mesh(&msh)?;
     for (&(dim, tag), shape) in projector.iter() {
-        let found = if dim == mesh.dim - 1 {
-            mesh.facet_tags.contains(&tag)
-        } else {
-            mesh.feature_edge_tags.contains(&tag)
-        };
+        let found =
+            if dim == mesh.dim - 1 { mesh.facet_tags.contains(&tag) } else { mesh.feature_edge_tags.contains(&tag) };
         if !found {
             return Err(Error::InvalidInput(format!(
                 "--geometry {tag}={shape}: no boundary {} of {} has entity tag {tag}",
-                if dim == mesh.dim - 1 {
-                    "facet"
-                } else {
-                    "feature curve"
-                },
+                if dim == mesh.dim - 1 { "facet" } else { "feature curve" },
                 input.display()
             )));
         }
@@ -323,10 +263,7 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
     write_mesh(&output, &curved)?;
     eprintln!("wrote {}", output.display());
     if let Some(r) = args.get("report") {
-        write_text_atomic(
-            Path::new(r),
-            &(report_json(&curved, &opts, Some(&output)) + "\n"),
-        )?;
+        write_text_atomic(Path::new(r), &(report_json(&curved, &opts, Some(&output)) + "\n"))?;
         eprintln!("wrote {r}");
     }
     Ok(())
@@ -336,27 +273,18 @@ fn cmd_quality(argv: &[String]) -> Result<()> {
     let args = Args::parse(argv, &["report"])?;
     let input = match args.positional.as_slice() {
         [one] => PathBuf::from(one),
-        _ => {
-            return Err(Error::InvalidInput(
-                "quality needs exactly one .msh file".into(),
-            ))
-        }
+        _ => return Err(Error::InvalidInput("quality needs exactly one .msh file".into())),
     };
     let msh = io::gmsh::read_msh(&input)?;
     let (simplex, order, coords, gmsh_cells) = io::gmsh::high_order_cells(&msh)?;
     // gmsh's Lagrange elements interpolate at equispaced reference nodes.
     let nodes = NodeSet::new(simplex, order, NodeSpacing::Equispaced);
     let perm = ordering::permutation(&ordering::gmsh_multi_indices(simplex, order), &nodes.multi)
-        .ok_or_else(|| {
-        Error::Io("internal: gmsh ordering does not match the node set".into())
-    })?;
+        .ok_or_else(|| Error::Io("internal: gmsh ordering does not match the node set".into()))?;
     let npc = nodes.len();
-    let cells: Vec<usize> = gmsh_cells
-        .chunks_exact(npc)
-        .flat_map(|c| perm.iter().map(move |&k| c[k]))
-        .collect();
+    let cells: Vec<usize> = gmsh_cells.chunks_exact(npc).flat_map(|c| perm.iter().map(move |&k| c[k])).collect();
     let cache = quality::sampling_cache(&LagrangeBasis::new(&nodes));
-    let q = quality::summarize(&quality::cell_qualities(&cache, &coords, &cells));
+    let q = quality::summarize(&quality::cell_qualities(&cache, &coords, &cells, None));
     let body = format!(
         "{{\n  \"file\": \"{}\",\n  \"order\": {order},\n  \"cells\": {},\n  \"nodes\": {},\n{}\n}}",
         json_escape(&input.display().to_string()),
@@ -410,11 +338,13 @@ fn num(x: f64) -> String {
 
 fn quality_json(q: &MeshQuality) -> String {
     format!(
-        "  \"min_q1\": {},\n  \"min_q2\": {},\n  \"min_q3\": {},\n  \"mean_q3\": {},\n  \"invalid_elements\": {},\n  \
+        "  \"min_q1\": {},\n  \"min_q2\": {},\n  \"min_q3\": {},\n  \"min_q4\": {},\n  \"min_q5\": {},\n  \"mean_q3\": {},\n  \"invalid_elements\": {},\n  \
          \"worst_cell\": {},\n  \"q3_histogram\": {:?}",
         num(q.min_q1),
         num(q.min_q2),
         num(q.min_q3),
+        num(q.min_q4),
+        num(q.min_q5),
         num(q.mean_q3),
         q.n_invalid,
         q.worst_cell,
@@ -426,13 +356,14 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
     let r = &c.report;
     let t = &r.timings;
     format!(
-        "{{\n  \"order\": {},\n  \"formulation\": \"{}\",\n  \"material\": \"linear\",\n  \"young\": {},\n  \
+        "{{\n  \"order\": {},\n  \"formulation\": \"{}\",\n  \"material\": \"{}\",\n  \"young\": {},\n  \
          \"poisson\": {},\n  \"increments\": {},\n  \"spacing\": \"{}\",\n  \"nodes\": {},\n  \"dofs\": {},\n  \
          \"cells\": {},\n  \"projected_nodes\": {},\n  \"max_projection_distance\": {},\n{},\n  \
-         \"seconds\": {{\"total\": {}, \"elevate\": {}, \"project\": {}, \"assembly\": {}, \"solve\": {}, \"quality\": {}}},\n  \
+         \"newton_history\": {:?},\n  \"seconds\": {{\"total\": {}, \"elevate\": {}, \"project\": {}, \"assembly\": {}, \"solve\": {}, \"quality\": {}}},\n  \
          \"output\": {}\n}}",
         r.order,
         r.formulation.name(),
+        r.material.name(),
         num(r.young),
         num(r.poisson),
         r.increments,
@@ -443,6 +374,7 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
         r.projected_nodes,
         num(r.max_projection_distance),
         quality_json(&r.quality),
+        r.newton_history,
         num(t.total),
         num(t.elevate),
         num(t.project),

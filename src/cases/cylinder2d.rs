@@ -34,10 +34,7 @@ pub const GROWTH: f64 = 1.2;
 /// # Panics
 /// If `stretching` is not finite or is < 1.
 pub fn cylinder_channel_2d(n_around: usize, n_layers: usize, stretching: f64) -> Case {
-    assert!(
-        stretching.is_finite() && stretching >= 1.0,
-        "stretching must be finite and >= 1, got {stretching}"
-    );
+    assert!(stretching.is_finite() && stretching >= 1.0, "stretching must be finite and >= 1, got {stretching}");
     let n = n_around.max(8).div_ceil(4) * 4;
     let (r, l) = (CYLINDER_RADIUS, CHANNEL_HALF_WIDTH);
     let chord = 2.0 * r * (PI / n as f64).sin();
@@ -94,13 +91,7 @@ pub fn cylinder_channel_2d(n_around: usize, n_layers: usize, stretching: f64) ->
     };
     let mesh = ring_mesh(n, n_rings, position);
     let mut projector = ShapeProjector::new();
-    projector.insert(
-        1,
-        Shape::Circle {
-            center: [0.0, 0.0],
-            radius: r,
-        },
-    );
+    projector.insert(1, Shape::Circle { center: [0.0, 0.0], radius: r });
     Case {
         name: "cylinder_channel_2d".into(),
         description: format!(
@@ -131,23 +122,13 @@ pub fn annulus_2d(r_in: f64, r_out: f64, n_around: usize, n_radial: usize) -> Ca
     let nr = n_radial.max(1);
     let position = |i: usize, k: usize| -> [f64; 2] {
         let (s, c) = (2.0 * PI * i as f64 / n as f64).sin_cos();
-        let rho = if k == nr {
-            r_out
-        } else {
-            r_in + (r_out - r_in) * k as f64 / nr as f64
-        };
+        let rho = if k == nr { r_out } else { r_in + (r_out - r_in) * k as f64 / nr as f64 };
         [rho * c, rho * s]
     };
     let mesh = ring_mesh(n, nr, position);
     let mut projector = ShapeProjector::new();
     for (tag, radius) in [(1, r_in), (2, r_out)] {
-        projector.insert(
-            tag,
-            Shape::Circle {
-                center: [0.0, 0.0],
-                radius,
-            },
-        );
+        projector.insert(tag, Shape::Circle { center: [0.0, 0.0], radius });
     }
     Case {
         name: "annulus_2d".into(),
@@ -166,10 +147,7 @@ pub fn annulus_2d(r_in: f64, r_out: f64, n_around: usize, n_radial: usize) -> Ca
 /// k ∈ 0..=n_rings outward, index k·n + i. Each quad is split along its
 /// shorter diagonal. Inner ring edges get tag 1, outer ring edges tag 2.
 fn ring_mesh(n: usize, n_rings: usize, position: impl Fn(usize, usize) -> [f64; 2]) -> LinearMesh {
-    let mut mesh = LinearMesh {
-        dim: 2,
-        ..Default::default()
-    };
+    let mut mesh = LinearMesh { dim: 2, ..Default::default() };
     for k in 0..=n_rings {
         for i in 0..n {
             mesh.coords.extend_from_slice(&position(i, k));
@@ -183,11 +161,8 @@ fn ring_mesh(n: usize, n_rings: usize, position: impl Fn(usize, usize) -> [f64; 
     for k in 0..n_rings {
         for i in 0..n {
             let (a, b, c, d) = (id(i, k), id(i + 1, k), id(i + 1, k + 1), id(i, k + 1));
-            let (t1, t2) = if dist(&mesh, a, c) <= dist(&mesh, b, d) {
-                ([a, b, c], [a, c, d])
-            } else {
-                ([a, b, d], [b, c, d])
-            };
+            let (t1, t2) =
+                if dist(&mesh, a, c) <= dist(&mesh, b, d) { ([a, b, c], [a, c, d]) } else { ([a, b, d], [b, c, d]) };
             push_cell(&mut mesh, t1.to_vec());
             push_cell(&mut mesh, t2.to_vec());
             // The triangle holding a boundary edge and its opposite vertex.
@@ -232,18 +207,11 @@ mod tests {
             // Exact: square minus the inscribed polygon (ray vertices on the
             // circle), and close to square minus disk with error ~ (2π/n)².
             let poly = inscribed_area(m, 1);
-            assert!(
-                (area - (16.0 - poly)).abs() < 1e-12,
-                "{area} vs {}",
-                16.0 - poly
-            );
+            assert!((area - (16.0 - poly)).abs() < 1e-12, "{area} vs {}", 16.0 - poly);
             let n = na.max(8).div_ceil(4) * 4;
             let exact = 16.0 - PI * 0.25;
             let err = area - exact;
-            assert!(
-                err > 0.0 && err < 0.25 * (2.0 * PI / n as f64).powi(2),
-                "{err}"
-            );
+            assert!(err > 0.0 && err < 0.25 * (2.0 * PI / n as f64).powi(2), "{err}");
             for v in tagged_vertices(m, 1) {
                 let x = m.vertex(v);
                 assert!((x[0].hypot(x[1]) - 0.5).abs() < 1e-12);

@@ -138,25 +138,16 @@ pub(crate) mod check {
         // Conforming: interior facets shared by 2 cells, boundary ones by 1,
         // the boundary equal to the tagged facets.
         let counts = facet_counts(mesh);
-        assert!(
-            counts.values().all(|&(c, _)| c <= 2),
-            "a facet in > 2 cells"
-        );
-        let boundary: BTreeSet<Vec<usize>> = counts
-            .iter()
-            .filter(|(_, &(c, _))| c == 1)
-            .map(|(f, _)| f.clone())
-            .collect();
+        assert!(counts.values().all(|&(c, _)| c <= 2), "a facet in > 2 cells");
+        let boundary: BTreeSet<Vec<usize>> =
+            counts.iter().filter(|(_, &(c, _))| c == 1).map(|(f, _)| f.clone()).collect();
         let mut tagged = BTreeSet::new();
         for f in mesh.facets.chunks(mesh.dim) {
             let mut f = f.to_vec();
             f.sort_unstable();
             assert!(tagged.insert(f), "a tagged facet is listed twice");
         }
-        assert_eq!(
-            boundary, tagged,
-            "boundary facets differ from the tagged ones"
-        );
+        assert_eq!(boundary, tagged, "boundary facets differ from the tagged ones");
         // Outward: the cell lies to the left of a 2D facet, behind a 3D one.
         for f in mesh.facets.chunks(mesh.dim) {
             let mut key = f.to_vec();
@@ -188,10 +179,7 @@ pub(crate) mod check {
                 }
             })
             .sum();
-        assert!(
-            (enclosed - total).abs() <= 1e-12 * total.abs(),
-            "boundary encloses {enclosed}, cells measure {total}"
-        );
+        assert!((enclosed - total).abs() <= 1e-12 * total.abs(), "boundary encloses {enclosed}, cells measure {total}");
         (min, total, enclosed)
     }
 
@@ -212,12 +200,7 @@ mod tests {
 
     #[test]
     fn geometric_thicknesses_sum_to_total() {
-        for (h1, total, n) in [
-            (0.01, 1.5, 20),
-            (0.5, 1.0, 4),
-            (0.1, 0.3, 3),
-            (1e-5, 2.0, 60),
-        ] {
+        for (h1, total, n) in [(0.01, 1.5, 20), (0.5, 1.0, 4), (0.1, 0.3, 3), (1e-5, 2.0, 60)] {
             let h = geometric_thicknesses(h1, total, n);
             assert_eq!(h.len(), n);
             assert!((h.iter().sum::<f64>() - total).abs() < 1e-14 * total);
@@ -240,8 +223,7 @@ mod tests {
         };
         let (min, total, _) = check::assert_valid(&good);
         assert!((min - 0.5).abs() < 1e-15 && (total - 1.0).abs() < 1e-15);
-        let fails =
-            |m: LinearMesh| std::panic::catch_unwind(move || check::assert_valid(&m)).is_err();
+        let fails = |m: LinearMesh| std::panic::catch_unwind(move || check::assert_valid(&m)).is_err();
         // Duplicated vertex 4 = 0: the diagonal is not shared (non-conforming).
         let mut dup = good.clone();
         dup.coords.extend_from_slice(&[0.0, 0.0]);

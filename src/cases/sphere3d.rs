@@ -45,13 +45,7 @@ pub fn sphere_in_box_3d(n: usize, n_radial: usize) -> Case {
         |w| [l * w[0], l * w[1], l * w[2]],
     );
     let mut projector = ShapeProjector::new();
-    projector.insert(
-        1,
-        Shape::Sphere {
-            center: [0.0; 3],
-            radius: r,
-        },
-    );
+    projector.insert(1, Shape::Sphere { center: [0.0; 3], radius: r });
     Case {
         name: "sphere_in_box_3d".into(),
         description: format!(
@@ -88,13 +82,7 @@ pub fn spherical_shell_3d(r_in: f64, r_out: f64, n: usize, n_radial: usize) -> C
     let mesh = cubed_sphere_shell(n, &layers, on_sphere(r_in), on_sphere(r_out));
     let mut projector = ShapeProjector::new();
     for (tag, radius) in [(1, r_in), (2, r_out)] {
-        projector.insert(
-            tag,
-            Shape::Sphere {
-                center: [0.0; 3],
-                radius,
-            },
-        );
+        projector.insert(tag, Shape::Sphere { center: [0.0; 3], radius });
     }
     Case {
         name: "spherical_shell_3d".into(),
@@ -180,10 +168,7 @@ fn cubed_sphere_shell(
             (PI / 4.0 * (2.0 * c as f64 / n as f64 - 1.0)).tan()
         }
     };
-    let mut mesh = LinearMesh {
-        dim: 3,
-        ..Default::default()
-    };
+    let mut mesh = LinearMesh { dim: 3, ..Default::default() };
     for &s in layers {
         for t in &lattice {
             let w = [coord(t[0]), coord(t[1]), coord(t[2])];
@@ -193,11 +178,7 @@ fn cubed_sphere_shell(
             } else if s == 1.0 {
                 q
             } else {
-                [
-                    p[0] + s * (q[0] - p[0]),
-                    p[1] + s * (q[1] - p[1]),
-                    p[2] + s * (q[2] - p[2]),
-                ]
+                [p[0] + s * (q[0] - p[0]), p[1] + s * (q[1] - p[1]), p[2] + s * (q[2] - p[2])]
             };
             mesh.coords.extend_from_slice(&x);
         }
@@ -231,13 +212,7 @@ fn cubed_sphere_shell(
 /// Split the hex with bottom quad `lo` and top quad `hi` (same winding) into
 /// 12 tets around a new centre vertex; record the bottom triangles as tag 1
 /// facets if `inner_boundary`, the top ones as tag 2 if `outer_boundary`.
-fn add_hex(
-    mesh: &mut LinearMesh,
-    lo: [usize; 4],
-    hi: [usize; 4],
-    inner_boundary: bool,
-    outer_boundary: bool,
-) {
+fn add_hex(mesh: &mut LinearMesh, lo: [usize; 4], hi: [usize; 4], inner_boundary: bool, outer_boundary: bool) {
     let centre = mesh.n_vertices();
     let mut x = [0.0; 3];
     for &v in lo.iter().chain(&hi) {
@@ -247,10 +222,7 @@ fn add_hex(
         }
     }
     mesh.coords.extend_from_slice(&x);
-    let mut faces = vec![
-        (lo, inner_boundary.then_some(1)),
-        (hi, outer_boundary.then_some(2)),
-    ];
+    let mut faces = vec![(lo, inner_boundary.then_some(1)), (hi, outer_boundary.then_some(2))];
     for m in 0..4 {
         let m1 = (m + 1) % 4;
         faces.push(([lo[m], lo[m1], hi[m1], hi[m]], None));
@@ -305,11 +277,7 @@ mod tests {
             // Exactly the box minus the inscribed polyhedron...
             let poly = enclosed_by(m, 1);
             assert!((enclosed_by(m, 2) - 64.0).abs() < 1e-12);
-            assert!(
-                (volume - (64.0 - poly)).abs() < 1e-12,
-                "{volume} vs {}",
-                64.0 - poly
-            );
+            assert!((volume - (64.0 - poly)).abs() < 1e-12, "{volume} vs {}", 64.0 - poly);
             // ... which converges to the ball as n grows, error O(1/n²).
             let err = volume - exact;
             let h = PI * 0.5 / (2.0 * n as f64);

@@ -19,9 +19,10 @@ use std::path::Path;
 
 use crate::curve::{Formulation, Progress, Stage};
 use crate::geometry::Projector;
+use crate::material::MaterialModel;
 use crate::mesh::LinearMesh;
 use crate::reference::NodeSpacing;
-use crate::session::{MaterialModel, NodeOrdering, Session};
+use crate::session::{NodeOrdering, Session};
 use crate::Error;
 
 /// Status code returned by every function (0 = success).
@@ -60,15 +61,15 @@ pub const HOC_SPACING_EQUISPACED: HocNodeSpacing = 1;
 pub type HocMaterial = c_int;
 /// Isotropic linear elasticity.
 pub const HOC_MATERIAL_LINEAR_ELASTIC: HocMaterial = 0;
-/// Compressible neo-Hookean (not available yet).
+/// Compressible neo-Hookean.
 pub const HOC_MATERIAL_NEO_HOOKEAN: HocMaterial = 1;
-/// Compressible Mooney–Rivlin (not available yet).
+/// Compressible Mooney–Rivlin.
 pub const HOC_MATERIAL_MOONEY_RIVLIN: HocMaterial = 2;
-/// Nearly incompressible Mooney–Rivlin (not available yet).
+/// Nearly incompressible Mooney–Rivlin.
 pub const HOC_MATERIAL_NI_MOONEY_RIVLIN: HocMaterial = 3;
-/// Transversely isotropic hyperelastic (not available yet).
+/// Transversely isotropic hyperelastic (fibres: see hoc_mesh_set_fibres).
 pub const HOC_MATERIAL_TRANSVERSELY_ISOTROPIC: HocMaterial = 4;
-/// Transversely isotropic linear elastic (not available yet).
+/// Transversely isotropic linear elastic (for ILE).
 pub const HOC_MATERIAL_TRANSVERSELY_ISOTROPIC_LINEAR: HocMaterial = 5;
 
 /// Solid-mechanics formulation (paper Table 1).
@@ -77,11 +78,11 @@ pub type HocFormulation = c_int;
 pub const HOC_FORMULATION_LINEAR: HocFormulation = 0;
 /// Incremental linear elasticity on the updated geometry. The default.
 pub const HOC_FORMULATION_ILE: HocFormulation = 1;
-/// Inconsistent incrementally linearised (not available yet).
+/// Inconsistent incrementally linearised (needs a hyperelastic material).
 pub const HOC_FORMULATION_IIL: HocFormulation = 2;
-/// Consistent incrementally linearised (not available yet).
+/// Consistent incrementally linearised (needs a hyperelastic material).
 pub const HOC_FORMULATION_CIL: HocFormulation = 3;
-/// Newton–Raphson on the hyperelastic problem (not available yet).
+/// Newton–Raphson on the hyperelastic problem (needs a hyperelastic material).
 pub const HOC_FORMULATION_NONLINEAR: HocFormulation = 4;
 
 /// Local node order of the returned connectivity.
@@ -127,9 +128,8 @@ pub type HocProjectFn = Option<
 
 /// Progress of a run: `stage` 0 elevate, 1 project, 2 increment, 3 quality;
 /// `step` of `total`. Return 0 to continue, nonzero to cancel the run.
-pub type HocProgressFn = Option<
-    unsafe extern "C" fn(user_data: *mut c_void, stage: c_int, step: c_int, total: c_int) -> c_int,
->;
+pub type HocProgressFn =
+    Option<unsafe extern "C" fn(user_data: *mut c_void, stage: c_int, step: c_int, total: c_int) -> c_int>;
 
 /// Opaque handle: one mesh being curved.
 pub struct HocMesh {
@@ -175,10 +175,7 @@ fn guard(handle: *const HocMesh, f: impl FnOnce() -> FfiResult) -> HocStatus {
             .map(|s| s.to_string())
             .or_else(|| p.downcast_ref::<String>().cloned())
             .unwrap_or_else(|| "unknown panic".into());
-        Err((
-            HOC_ERROR_PANIC,
-            format!("internal error (please report): {msg}"),
-        ))
+        Err((HOC_ERROR_PANIC, format!("internal error (please report): {msg}")))
     });
     let (status, msg) = match result {
         Ok(()) => (HOC_OK, String::new()),
@@ -193,11 +190,7 @@ fn guard(handle: *const HocMesh, f: impl FnOnce() -> FfiResult) -> HocStatus {
 }
 
 /// Borrow a slice from C, checking the pointer (NULL is fine when len = 0).
-unsafe fn slice<'a, T>(
-    ptr: *const T,
-    len: usize,
-    what: &str,
-) -> std::result::Result<&'a [T], (HocStatus, String)> {
+unsafe fn slice<'a, T>(ptr: *const T, len: usize, what: &str) -> std::result::Result<&'a [T], (HocStatus, String)> {
     if len == 0 {
         return Ok(&[]);
     }
@@ -214,30 +207,20 @@ fn indices(v: &[i64], what: &str) -> std::result::Result<Vec<usize>, (HocStatus,
     v.iter()
         .enumerate()
         .map(|(k, &i)| {
-            usize::try_from(i).map_err(|_| {
-                (
-                    HOC_ERROR_INVALID_MESH,
-                    format!("{what}[{k}] = {i} is negative"),
-                )
-            })
+            usize::try_from(i).map_err(|_| (HOC_ERROR_INVALID_MESH, format!("{what}[{k}] = {i} is negative")))
         })
         .collect()
 }
 
 fn checked_mul(a: usize, b: usize, what: &str) -> std::result::Result<usize, (HocStatus, String)> {
-    a.checked_mul(b)
-        .ok_or_else(|| arg(format!("{what}: size overflows")))
+    a.checked_mul(b).ok_or_else(|| arg(format!("{what}: size overflows")))
 }
 
-unsafe fn handle_mut<'a>(
-    mesh: *mut HocMesh,
-) -> std::result::Result<&'a mut HocMesh, (HocStatus, String)> {
+unsafe fn handle_mut<'a>(mesh: *mut HocMesh) -> std::result::Result<&'a mut HocMesh, (HocStatus, String)> {
     mesh.as_mut().ok_or_else(|| null("mesh"))
 }
 
-unsafe fn handle<'a>(
-    mesh: *const HocMesh,
-) -> std::result::Result<&'a HocMesh, (HocStatus, String)> {
+unsafe fn handle<'a>(mesh: *const HocMesh) -> std::result::Result<&'a HocMesh, (HocStatus, String)> {
     mesh.as_ref().ok_or_else(|| null("mesh"))
 }
 
@@ -274,21 +257,10 @@ pub unsafe extern "C" fn hoc_mesh_create(
             return Err((HOC_ERROR_INVALID_MESH, "the mesh has no cells".into()));
         }
         let coords = slice(coords, checked_mul(n_vertices, d, "coords")?, "coords")?.to_vec();
-        let cells = indices(
-            slice(cells, checked_mul(n_cells, d + 1, "cells")?, "cells")?,
-            "cells",
-        )?;
-        let linear = LinearMesh {
-            dim: d,
-            coords,
-            cells,
-            ..Default::default()
-        };
+        let cells = indices(slice(cells, checked_mul(n_cells, d + 1, "cells")?, "cells")?, "cells")?;
+        let linear = LinearMesh { dim: d, coords, cells, ..Default::default() };
         let session = Session::try_new(linear).map_err(mesh_err)?;
-        created = Some(Box::new(HocMesh {
-            session,
-            last_error: RefCell::new(CString::default()),
-        }));
+        created = Some(Box::new(HocMesh { session, last_error: RefCell::new(CString::default()) }));
         Ok(())
     });
     if let Some(h) = created {
@@ -330,10 +302,7 @@ pub unsafe extern "C" fn hoc_mesh_set_boundary(
     guard(mesh, || {
         let h = handle_mut(mesh)?;
         let d = h.session.dim();
-        let f = indices(
-            slice(facets, checked_mul(n_facets, d, "facets")?, "facets")?,
-            "facets",
-        )?;
+        let f = indices(slice(facets, checked_mul(n_facets, d, "facets")?, "facets")?, "facets")?;
         let t = slice(entity_tags, n_facets, "entity_tags")?.to_vec();
         h.session.set_boundary(f, t).map_err(mesh_err)
     })
@@ -356,10 +325,7 @@ pub unsafe extern "C" fn hoc_mesh_set_feature_edges(
 ) -> HocStatus {
     guard(mesh, || {
         let h = handle_mut(mesh)?;
-        let e = indices(
-            slice(edges, checked_mul(n_edges, 2, "edges")?, "edges")?,
-            "edges",
-        )?;
+        let e = indices(slice(edges, checked_mul(n_edges, 2, "edges")?, "edges")?, "edges")?;
         let t = slice(curve_tags, n_edges, "curve_tags")?.to_vec();
         h.session.set_feature_edges(e, t).map_err(mesh_err)
     })
@@ -390,14 +356,7 @@ impl Projector for CProjector {
         let mut proj = vec![f64::NAN; flat.len()];
         // SAFETY: both buffers hold points.len() * dim doubles.
         let rc = unsafe {
-            (self.f)(
-                self.user_data,
-                entity_dim as c_int,
-                tag,
-                points.len(),
-                flat.as_ptr(),
-                proj.as_mut_ptr(),
-            )
+            (self.f)(self.user_data, entity_dim as c_int, tag, points.len(), flat.as_ptr(), proj.as_mut_ptr())
         };
         if rc != 0 {
             return Err(format!("the projection callback returned {rc}"));
@@ -425,10 +384,8 @@ pub unsafe extern "C" fn hoc_mesh_set_projector(
     guard(mesh, || {
         let h = handle_mut(mesh)?;
         let dim = h.session.dim();
-        h.session.set_projector(
-            callback
-                .map(|f| Box::new(CProjector { f, user_data, dim }) as Box<dyn Projector + Send>),
-        );
+        h.session
+            .set_projector(callback.map(|f| Box::new(CProjector { f, user_data, dim }) as Box<dyn Projector + Send>));
         Ok(())
     })
 }
@@ -479,8 +436,7 @@ pub unsafe extern "C" fn hoc_mesh_set_progress(
 pub unsafe extern "C" fn hoc_mesh_set_threads(mesh: *mut HocMesh, n_threads: c_int) -> HocStatus {
     guard(mesh, || {
         let h = handle_mut(mesh)?;
-        let n = usize::try_from(n_threads)
-            .map_err(|_| arg(format!("n_threads must be >= 0, got {n_threads}")))?;
+        let n = usize::try_from(n_threads).map_err(|_| arg(format!("n_threads must be >= 0, got {n_threads}")))?;
         h.session.set_threads(n);
         Ok(())
     })
@@ -493,11 +449,7 @@ pub unsafe extern "C" fn hoc_mesh_set_threads(mesh: *mut HocMesh, n_threads: c_i
 /// @param[in] spacing HOC_SPACING_OPTIMAL or HOC_SPACING_EQUISPACED
 /// @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
 #[no_mangle]
-pub unsafe extern "C" fn hoc_mesh_set_order(
-    mesh: *mut HocMesh,
-    order: c_int,
-    spacing: HocNodeSpacing,
-) -> HocStatus {
+pub unsafe extern "C" fn hoc_mesh_set_order(mesh: *mut HocMesh, order: c_int, spacing: HocNodeSpacing) -> HocStatus {
     guard(mesh, || {
         let h = handle_mut(mesh)?;
         let spacing = match spacing {
@@ -505,8 +457,7 @@ pub unsafe extern "C" fn hoc_mesh_set_order(
             HOC_SPACING_EQUISPACED => NodeSpacing::Equispaced,
             s => return Err(arg(format!("unknown node spacing {s}"))),
         };
-        let order = usize::try_from(order)
-            .map_err(|_| arg(format!("order must be between 1 and 10, got {order}")))?;
+        let order = usize::try_from(order).map_err(|_| arg(format!("order must be between 1 and 10, got {order}")))?;
         h.session.set_order(order, spacing).map_err(err)
     })
 }
@@ -530,11 +481,11 @@ pub unsafe extern "C" fn hoc_mesh_set_material(
         let h = handle_mut(mesh)?;
         let model = match model {
             HOC_MATERIAL_LINEAR_ELASTIC => MaterialModel::LinearElastic,
-            HOC_MATERIAL_NEO_HOOKEAN..=HOC_MATERIAL_TRANSVERSELY_ISOTROPIC_LINEAR => {
-                return Err(arg(format!(
-                    "material {model} is not implemented yet (use HOC_MATERIAL_LINEAR_ELASTIC)"
-                )))
-            }
+            HOC_MATERIAL_NEO_HOOKEAN => MaterialModel::NeoHookean,
+            HOC_MATERIAL_MOONEY_RIVLIN => MaterialModel::MooneyRivlin,
+            HOC_MATERIAL_NI_MOONEY_RIVLIN => MaterialModel::NearlyIncompressibleMooneyRivlin,
+            HOC_MATERIAL_TRANSVERSELY_ISOTROPIC => MaterialModel::TransverselyIsotropic,
+            HOC_MATERIAL_TRANSVERSELY_ISOTROPIC_LINEAR => MaterialModel::TransverselyIsotropicLinear,
             m => return Err(arg(format!("unknown material {m}"))),
         };
         h.session.set_material(model, young, poisson).map_err(err)
@@ -547,24 +498,61 @@ pub unsafe extern "C" fn hoc_mesh_set_material(
 /// @param[in] formulation a HOC_FORMULATION_* value
 /// @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
 #[no_mangle]
-pub unsafe extern "C" fn hoc_mesh_set_formulation(
-    mesh: *mut HocMesh,
-    formulation: HocFormulation,
-) -> HocStatus {
+pub unsafe extern "C" fn hoc_mesh_set_formulation(mesh: *mut HocMesh, formulation: HocFormulation) -> HocStatus {
     guard(mesh, || {
         let h = handle_mut(mesh)?;
         let f = match formulation {
             HOC_FORMULATION_LINEAR => Formulation::Linear,
             HOC_FORMULATION_ILE => Formulation::Ile,
-            HOC_FORMULATION_IIL..=HOC_FORMULATION_NONLINEAR => {
-                return Err(arg(format!(
-                    "formulation {formulation} is not implemented yet (use LINEAR or ILE)"
-                )))
-            }
+            HOC_FORMULATION_IIL => Formulation::Iil,
+            HOC_FORMULATION_CIL => Formulation::Cil,
+            HOC_FORMULATION_NONLINEAR => Formulation::Nonlinear,
             f => return Err(arg(format!("unknown formulation {f}"))),
         };
         h.session.set_formulation(f);
         Ok(())
+    })
+}
+
+/// Newton–Raphson settings of HOC_FORMULATION_NONLINEAR: converged when
+/// ‖R‖/‖R₀‖ < `tolerance` (default 1e-5), at most `max_iterations` (default 30)
+/// iterations per increment.
+///
+/// @param[in,out] mesh the handle
+/// @param[in] tolerance > 0
+/// @param[in] max_iterations ≥ 1
+/// @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_set_newton(mesh: *mut HocMesh, tolerance: f64, max_iterations: c_int) -> HocStatus {
+    guard(mesh, || {
+        let h = handle_mut(mesh)?;
+        let n = usize::try_from(max_iterations)
+            .map_err(|_| arg(format!("max_iterations must be >= 1, got {max_iterations}")))?;
+        h.session.set_newton(tolerance, n).map_err(err)
+    })
+}
+
+/// Fibre direction of every cell for the transversely isotropic materials
+/// (3 doubles per cell, also in 2D; normalised by hocurve). NULL restores the
+/// default: −x inside, tangent to the boundary on boundary cells.
+///
+/// @param[in,out] mesh the handle
+/// @param[in] n_cells must equal the number of cells (ignored when `fibres` is NULL)
+/// @param[in] fibres `3 * n_cells` doubles, or NULL
+/// @return HOC_OK, HOC_ERROR_BUFFER_SIZE or HOC_ERROR_INVALID_ARGUMENT
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_set_fibres(mesh: *mut HocMesh, n_cells: usize, fibres: *const f64) -> HocStatus {
+    guard(mesh, || {
+        let h = handle_mut(mesh)?;
+        if fibres.is_null() {
+            return h.session.set_fibres(None).map_err(err);
+        }
+        let nc = h.session.mesh().n_cells();
+        if n_cells != nc {
+            return Err((HOC_ERROR_BUFFER_SIZE, format!("n_cells = {n_cells}, but the mesh has {nc} cells")));
+        }
+        let f = slice(fibres, checked_mul(n_cells, 3, "fibres")?, "fibres")?;
+        h.session.set_fibres(Some(f.chunks_exact(3).map(|v| [v[0], v[1], v[2]]).collect())).map_err(err)
     })
 }
 
@@ -575,10 +563,7 @@ pub unsafe extern "C" fn hoc_mesh_set_formulation(
 /// @param[in] increments ≥ 1
 /// @return HOC_OK or the failure's status; see hoc_mesh_last_error
 #[no_mangle]
-pub unsafe extern "C" fn hoc_mesh_run_increments(
-    mesh: *mut HocMesh,
-    increments: c_int,
-) -> HocStatus {
+pub unsafe extern "C" fn hoc_mesh_run_increments(mesh: *mut HocMesh, increments: c_int) -> HocStatus {
     guard(mesh, || {
         let h = handle_mut(mesh)?;
         let n = usize::try_from(increments)
@@ -604,8 +589,8 @@ pub unsafe extern "C" fn hoc_mesh_quality(mesh: *const HocMesh, out: *mut HocQua
             min_q1: q.min_q1,
             min_q2: q.min_q2,
             min_q3: q.min_q3,
-            min_q4: f64::NAN,
-            min_q5: f64::NAN,
+            min_q4: q.min_q4,
+            min_q5: q.min_q5,
             mean_q3: q.mean_q3,
             n_invalid: q.n_invalid,
             n_cells: h.session.mesh().n_cells(),
@@ -632,10 +617,7 @@ pub unsafe extern "C" fn hoc_mesh_cell_quality(
         let h = handle(mesh)?;
         let cq = h.session.cell_quality();
         if n != cq.len() {
-            return Err((
-                HOC_ERROR_BUFFER_SIZE,
-                format!("n = {n}, but the mesh has {} cells", cq.len()),
-            ));
+            return Err((HOC_ERROR_BUFFER_SIZE, format!("n = {n}, but the mesh has {} cells", cq.len())));
         }
         if out.is_null() {
             return Err(null("out"));
@@ -660,10 +642,7 @@ pub unsafe extern "C" fn hoc_mesh_cell_quality(
 /// @param[out] n_nodes the count
 /// @return HOC_OK or HOC_ERROR_NULL_POINTER
 #[no_mangle]
-pub unsafe extern "C" fn hoc_mesh_node_count(
-    mesh: *const HocMesh,
-    n_nodes: *mut usize,
-) -> HocStatus {
+pub unsafe extern "C" fn hoc_mesh_node_count(mesh: *const HocMesh, n_nodes: *mut usize) -> HocStatus {
     guard(mesh, || {
         let h = handle(mesh)?;
         *n_nodes.as_mut().ok_or_else(|| null("n_nodes"))? = h.session.mesh().n_nodes();
@@ -687,9 +666,7 @@ pub unsafe extern "C" fn hoc_mesh_cell_count(
         let h = handle(mesh)?;
         let m = h.session.mesh();
         *n_cells.as_mut().ok_or_else(|| null("n_cells"))? = m.n_cells();
-        *nodes_per_cell
-            .as_mut()
-            .ok_or_else(|| null("nodes_per_cell"))? = m.nodes_per_cell();
+        *nodes_per_cell.as_mut().ok_or_else(|| null("nodes_per_cell"))? = m.nodes_per_cell();
         Ok(())
     })
 }
@@ -702,19 +679,12 @@ pub unsafe extern "C" fn hoc_mesh_cell_count(
 /// @param[out] coords `n_nodes * dim` doubles
 /// @return HOC_OK, HOC_ERROR_NULL_POINTER or HOC_ERROR_BUFFER_SIZE
 #[no_mangle]
-pub unsafe extern "C" fn hoc_mesh_get_nodes(
-    mesh: *const HocMesh,
-    n_nodes: usize,
-    coords: *mut f64,
-) -> HocStatus {
+pub unsafe extern "C" fn hoc_mesh_get_nodes(mesh: *const HocMesh, n_nodes: usize, coords: *mut f64) -> HocStatus {
     guard(mesh, || {
         let h = handle(mesh)?;
         let m = h.session.mesh();
         if n_nodes != m.n_nodes() {
-            return Err((
-                HOC_ERROR_BUFFER_SIZE,
-                format!("n_nodes = {n_nodes}, but the mesh has {}", m.n_nodes()),
-            ));
+            return Err((HOC_ERROR_BUFFER_SIZE, format!("n_nodes = {n_nodes}, but the mesh has {}", m.n_nodes())));
         }
         if coords.is_null() {
             return Err(null("coords"));
@@ -748,10 +718,7 @@ pub unsafe extern "C" fn hoc_mesh_get_cells(
         };
         let m = h.session.mesh();
         if len != m.cells.len() {
-            return Err((
-                HOC_ERROR_BUFFER_SIZE,
-                format!("len = {len}, but the connectivity has {}", m.cells.len()),
-            ));
+            return Err((HOC_ERROR_BUFFER_SIZE, format!("len = {len}, but the connectivity has {}", m.cells.len())));
         }
         if cells.is_null() {
             return Err(null("cells"));
@@ -777,15 +744,8 @@ pub unsafe extern "C" fn hoc_mesh_write(mesh: *const HocMesh, path: *const c_cha
         if path.is_null() {
             return Err(null("path"));
         }
-        let p = CStr::from_ptr(path)
-            .to_str()
-            .map_err(|_| arg("path is not valid UTF-8"))?;
-        crate::io::write_mesh(
-            Path::new(p),
-            h.session.mesh(),
-            Some(h.session.cell_quality()),
-        )
-        .map_err(err)
+        let p = CStr::from_ptr(path).to_str().map_err(|_| arg("path is not valid UTF-8"))?;
+        crate::io::write_mesh(Path::new(p), h.session.mesh(), Some(h.session.cell_quality())).map_err(err)
     })
 }
 

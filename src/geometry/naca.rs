@@ -55,17 +55,13 @@ impl Naca4 {
     /// (`M > 0, P = 0`), on a non-positive or non-finite chord.
     pub fn from_digits(digits: [u8; 4], chord: f64, origin: [f64; 2]) -> Result<Self> {
         if digits.iter().any(|&d| d > 9) {
-            return Err(Error::InvalidInput(format!(
-                "NACA digits must be 0..9, got {digits:?}"
-            )));
+            return Err(Error::InvalidInput(format!("NACA digits must be 0..9, got {digits:?}")));
         }
         let m = f64::from(digits[0]) / 100.0;
         let p = f64::from(digits[1]) / 10.0;
         let t = f64::from(10 * digits[2] + digits[3]) / 100.0;
         if t <= 0.0 {
-            return Err(Error::InvalidInput(
-                "NACA thickness (last two digits) must be positive".into(),
-            ));
+            return Err(Error::InvalidInput("NACA thickness (last two digits) must be positive".into()));
         }
         if m > 0.0 && p == 0.0 {
             return Err(Error::InvalidInput(
@@ -73,17 +69,9 @@ impl Naca4 {
             ));
         }
         if chord <= 0.0 || !chord.is_finite() || !origin.iter().all(|v| v.is_finite()) {
-            return Err(Error::InvalidInput(
-                "the NACA chord must be positive and the origin finite".into(),
-            ));
+            return Err(Error::InvalidInput("the NACA chord must be positive and the origin finite".into()));
         }
-        Ok(Naca4 {
-            m,
-            p,
-            t,
-            chord,
-            origin,
-        })
+        Ok(Naca4 { m, p, t, chord, origin })
     }
 
     /// Camber y_c, slope γ = dy_c/dξ and dγ/dξ at ξ (chord 1).
@@ -97,11 +85,7 @@ impl Naca4 {
             (k * (2.0 * p * xi - xi * xi), 2.0 * k * (p - xi), -2.0 * k)
         } else {
             let k = m / ((1.0 - p) * (1.0 - p));
-            (
-                k * ((1.0 - 2.0 * p) + 2.0 * p * xi - xi * xi),
-                2.0 * k * (p - xi),
-                -2.0 * k,
-            )
+            (k * ((1.0 - 2.0 * p) + 2.0 * p * xi - xi * xi), 2.0 * k * (p - xi), -2.0 * k)
         }
     }
 
@@ -114,11 +98,7 @@ impl Naca4 {
         let poly = q2 * (A[1] + q2 * (A[2] + q2 * (A[3] + q2 * A[4])));
         let dpoly = q * (2.0 * A[1] + q2 * (4.0 * A[2] + q2 * (6.0 * A[3] + q2 * 8.0 * A[4])));
         let ddpoly = 2.0 * A[1] + q2 * (12.0 * A[2] + q2 * (30.0 * A[3] + q2 * 56.0 * A[4]));
-        (
-            k * (A[0] * q + s * poly),
-            k * (A[0] + s * dpoly),
-            k * s * ddpoly,
-        )
+        (k * (A[0] * q + s * poly), k * (A[0] + s * dpoly), k * s * ddpoly)
     }
 
     /// The curve c(q), q ∈ [−1, 1], with c′(q) and c″(q) (physical units).
@@ -135,16 +115,10 @@ impl Naca4 {
         let th_q = th_xi * 2.0 * q;
         let th_qq = th_xixi * 4.0 * xi + th_xi * 2.0;
         let x = [xi - y * sin, yc + y * cos];
-        let d1 = [
-            2.0 * q - dy * sin - y * cos * th_q,
-            g * 2.0 * q + dy * cos - y * sin * th_q,
-        ];
+        let d1 = [2.0 * q - dy * sin - y * cos * th_q, g * 2.0 * q + dy * cos - y * sin * th_q];
         let d2 = [
             2.0 - ddy * sin - 2.0 * dy * cos * th_q + y * sin * th_q * th_q - y * cos * th_qq,
-            dg * 4.0 * xi + 2.0 * g + ddy * cos
-                - 2.0 * dy * sin * th_q
-                - y * cos * th_q * th_q
-                - y * sin * th_qq,
+            dg * 4.0 * xi + 2.0 * g + ddy * cos - 2.0 * dy * sin * th_q - y * cos * th_q * th_q - y * sin * th_qq,
         ];
         let c = self.chord;
         CurvePoint {
@@ -196,10 +170,7 @@ impl Naca4 {
     fn h(&self, x: [f64; 2], q: f64) -> (f64, f64) {
         let e = self.eval(q);
         let r = [x[0] - e.x[0], x[1] - e.x[1]];
-        (
-            -(r[0] * e.d1[0] + r[1] * e.d1[1]),
-            e.d1[0] * e.d1[0] + e.d1[1] * e.d1[1] - (r[0] * e.d2[0] + r[1] * e.d2[1]),
-        )
+        (-(r[0] * e.d1[0] + r[1] * e.d1[1]), e.d1[0] * e.d1[0] + e.d1[1] * e.d1[1] - (r[0] * e.d2[0] + r[1] * e.d2[1]))
     }
 
     /// Minimiser of |x − c(q)|² on [a, b].
@@ -220,11 +191,7 @@ impl Naca4 {
                     b = q;
                 }
                 let newton = q - hq / dh;
-                let next = if dh > 0.0 && newton > a && newton < b {
-                    newton
-                } else {
-                    0.5 * (a + b)
-                };
+                let next = if dh > 0.0 && newton > a && newton < b { newton } else { 0.5 * (a + b) };
                 if (next - q).abs() <= 2.0 * f64::EPSILON * q.abs().max(1e-3) || b - a <= 0.0 {
                     return next;
                 }
@@ -308,17 +275,14 @@ mod tests {
         for xi in [0.0, 0.01, 0.3, 0.7, 1.0] {
             let yt = 5.0
                 * 0.12
-                * (0.2969 * f64::sqrt(xi) - 0.1260 * xi - 0.3516 * xi * xi + 0.2843 * xi.powi(3)
-                    - 0.1036 * xi.powi(4));
+                * (0.2969 * f64::sqrt(xi) - 0.1260 * xi - 0.3516 * xi * xi + 0.2843 * xi.powi(3) - 0.1036 * xi.powi(4));
             let up = f.point(xi.sqrt());
             let lo = f.point(-xi.sqrt());
             assert!((up[0] - xi).abs() < 1e-15 && (up[1] - yt).abs() < 1e-15);
             assert!((lo[0] - xi).abs() < 1e-15 && (lo[1] + yt).abs() < 1e-15);
         }
         // Maximum thickness 12% of the chord near ξ = 0.3.
-        let tmax = (0..=1000)
-            .map(|i| 2.0 * f.point((i as f64 / 1000.0).sqrt())[1])
-            .fold(0.0, f64::max);
+        let tmax = (0..=1000).map(|i| 2.0 * f.point((i as f64 / 1000.0).sqrt())[1]).fold(0.0, f64::max);
         assert!((tmax - 0.12).abs() < 1e-3, "{tmax}");
         let (a, b) = (f.point(1.0), f.point(-1.0));
         assert!(dist2(a, b).sqrt() < 1e-15);
@@ -355,9 +319,7 @@ mod tests {
     #[test]
     fn closest_point_is_stationary_on_curve_and_beats_sampling() {
         for f in foils() {
-            let dense: Vec<[f64; 2]> = (0..=200_000)
-                .map(|i| f.point(-1.0 + 2.0 * i as f64 / 200_000.0))
-                .collect();
+            let dense: Vec<[f64; 2]> = (0..=200_000).map(|i| f.point(-1.0 + 2.0 * i as f64 / 200_000.0)).collect();
             for x in probe_points(&f) {
                 let q = f.closest_parameter(x);
                 assert!((-1.0..=1.0).contains(&q));
@@ -371,10 +333,7 @@ mod tests {
                     assert!(res.abs() <= 1e-12 * f.chord, "{f:?} {x:?} q={q} res={res}");
                 }
                 // ... and global: no dense sample is closer.
-                let brute = dense
-                    .iter()
-                    .map(|s| dist2(x, *s).sqrt())
-                    .fold(f64::INFINITY, f64::min);
+                let brute = dense.iter().map(|s| dist2(x, *s).sqrt()).fold(f64::INFINITY, f64::min);
                 assert!(d <= brute + 1e-13 * f.chord, "{f:?} {x:?}: {d} > {brute}");
             }
         }
@@ -387,11 +346,7 @@ mod tests {
                 let q = -1.0 + 2.0 * i as f64 / 400.0;
                 let x = f.point(q);
                 let y = f.closest_point(x);
-                assert!(
-                    dist2(x, y).sqrt() <= 1e-14 * f.chord,
-                    "{f:?} q={q}: moved by {}",
-                    dist2(x, y).sqrt()
-                );
+                assert!(dist2(x, y).sqrt() <= 1e-14 * f.chord, "{f:?} q={q}: moved by {}", dist2(x, y).sqrt());
             }
         }
     }

@@ -21,43 +21,23 @@ pub enum Shape {
     /// Circle in the plane z = 0 (2D curve).
     Circle { center: [f64; 2], radius: f64 },
     /// Circle in 3D: centre, normal of its plane, radius (3D curve).
-    Circle3 {
-        center: [f64; 3],
-        normal: [f64; 3],
-        radius: f64,
-    },
+    Circle3 { center: [f64; 3], normal: [f64; 3], radius: f64 },
     /// Sphere (surface).
     Sphere { center: [f64; 3], radius: f64 },
     /// Infinite circular cylinder whose axis passes through `point` along
     /// `axis` (surface).
-    Cylinder {
-        point: [f64; 3],
-        axis: [f64; 3],
-        radius: f64,
-    },
+    Cylinder { point: [f64; 3], axis: [f64; 3], radius: f64 },
     /// Ring torus: distance `major` from `center` to the tube centre circle
     /// (in the plane normal to `axis`), tube radius `minor < major` (surface).
-    Torus {
-        center: [f64; 3],
-        axis: [f64; 3],
-        major: f64,
-        minor: f64,
-    },
+    Torus { center: [f64; 3], axis: [f64; 3], major: f64, minor: f64 },
     /// Plane through `point` with normal `normal` (surface).
     Plane { point: [f64; 3], normal: [f64; 3] },
     /// Infinite straight line through `point` along `direction` (curve).
-    Line {
-        point: [f64; 3],
-        direction: [f64; 3],
-    },
+    Line { point: [f64; 3], direction: [f64; 3] },
     /// NACA 4-digit aerofoil `MPTT` in the plane z = 0 with the closed
     /// trailing edge, leading edge at `origin`, chord along +x (2D closed
     /// curve). See [`Naca4`].
-    Naca4 {
-        digits: [u8; 4],
-        chord: f64,
-        origin: [f64; 2],
-    },
+    Naca4 { digits: [u8; 4], chord: f64, origin: [f64; 2] },
 }
 
 impl Shape {
@@ -78,9 +58,7 @@ impl Shape {
     /// ```
     pub fn parse(s: &str) -> Result<Shape> {
         let bad = |why: String| Error::InvalidInput(format!("shape \"{s}\": {why}"));
-        let (kind, rest) = s
-            .split_once(':')
-            .ok_or_else(|| bad("expected KIND:values, e.g. sphere:0,0,0,1".into()))?;
+        let (kind, rest) = s.split_once(':').ok_or_else(|| bad("expected KIND:values, e.g. sphere:0,0,0,1".into()))?;
         let kind = kind.trim().to_ascii_lowercase();
         let items: Vec<&str> = rest.split(',').map(str::trim).collect();
         let numbers = |from: usize| -> Result<Vec<f64>> {
@@ -97,94 +75,57 @@ impl Shape {
             if n.contains(&v.len()) {
                 Ok(())
             } else {
-                Err(bad(format!(
-                    "{kind} expects {syntax}, got {} value(s)",
-                    v.len()
-                )))
+                Err(bad(format!("{kind} expects {syntax}, got {} value(s)", v.len())))
             }
         };
         let shape = match kind.as_str() {
             "circle" => {
                 let v = numbers(0)?;
                 count(&v, &[3], "cx,cy,r")?;
-                Shape::Circle {
-                    center: [v[0], v[1]],
-                    radius: v[2],
-                }
+                Shape::Circle { center: [v[0], v[1]], radius: v[2] }
             }
             "circle3" => {
                 let v = numbers(0)?;
                 count(&v, &[7], "cx,cy,cz,nx,ny,nz,r")?;
-                Shape::Circle3 {
-                    center: [v[0], v[1], v[2]],
-                    normal: [v[3], v[4], v[5]],
-                    radius: v[6],
-                }
+                Shape::Circle3 { center: [v[0], v[1], v[2]], normal: [v[3], v[4], v[5]], radius: v[6] }
             }
             "sphere" => {
                 let v = numbers(0)?;
                 count(&v, &[4], "cx,cy,cz,r")?;
-                Shape::Sphere {
-                    center: [v[0], v[1], v[2]],
-                    radius: v[3],
-                }
+                Shape::Sphere { center: [v[0], v[1], v[2]], radius: v[3] }
             }
             "cylinder" => {
                 let v = numbers(0)?;
                 count(&v, &[7], "px,py,pz,ax,ay,az,r")?;
-                Shape::Cylinder {
-                    point: [v[0], v[1], v[2]],
-                    axis: [v[3], v[4], v[5]],
-                    radius: v[6],
-                }
+                Shape::Cylinder { point: [v[0], v[1], v[2]], axis: [v[3], v[4], v[5]], radius: v[6] }
             }
             "torus" => {
                 let v = numbers(0)?;
                 count(&v, &[5, 8], "cx,cy,cz,R,r or cx,cy,cz,ax,ay,az,R,r")?;
-                let (axis, major, minor) = if v.len() == 5 {
-                    ([0.0, 0.0, 1.0], v[3], v[4])
-                } else {
-                    ([v[3], v[4], v[5]], v[6], v[7])
-                };
-                Shape::Torus {
-                    center: [v[0], v[1], v[2]],
-                    axis,
-                    major,
-                    minor,
-                }
+                let (axis, major, minor) =
+                    if v.len() == 5 { ([0.0, 0.0, 1.0], v[3], v[4]) } else { ([v[3], v[4], v[5]], v[6], v[7]) };
+                Shape::Torus { center: [v[0], v[1], v[2]], axis, major, minor }
             }
             "plane" => {
                 let v = numbers(0)?;
                 count(&v, &[6], "px,py,pz,nx,ny,nz")?;
-                Shape::Plane {
-                    point: [v[0], v[1], v[2]],
-                    normal: [v[3], v[4], v[5]],
-                }
+                Shape::Plane { point: [v[0], v[1], v[2]], normal: [v[3], v[4], v[5]] }
             }
             "line" => {
                 let v = numbers(0)?;
                 count(&v, &[6], "px,py,pz,dx,dy,dz")?;
-                Shape::Line {
-                    point: [v[0], v[1], v[2]],
-                    direction: [v[3], v[4], v[5]],
-                }
+                Shape::Line { point: [v[0], v[1], v[2]], direction: [v[3], v[4], v[5]] }
             }
             "naca4" => {
                 let code = items[0];
                 let b = code.as_bytes();
                 if b.len() != 4 || !b.iter().all(u8::is_ascii_digit) {
-                    return Err(bad(format!(
-                        "naca4 expects four digits first (e.g. 2412), got \"{code}\""
-                    )));
+                    return Err(bad(format!("naca4 expects four digits first (e.g. 2412), got \"{code}\"")));
                 }
                 let digits = [b[0] - b'0', b[1] - b'0', b[2] - b'0', b[3] - b'0'];
                 let v = numbers(1)?;
                 count(&v, &[3], "DDDD,chord,x0,y0 (3 numbers after the digits)")?;
-                Shape::Naca4 {
-                    digits,
-                    chord: v[0],
-                    origin: [v[1], v[2]],
-                }
+                Shape::Naca4 { digits, chord: v[0], origin: [v[1], v[2]] }
             }
             _ => {
                 return Err(bad(format!(
@@ -209,23 +150,12 @@ impl Shape {
         let nonzero = |v: &[f64; 3]| norm(*v) > 0.0;
         let ok_numbers = match self {
             Shape::Circle { center, radius } => finite(center) && radius.is_finite(),
-            Shape::Circle3 {
-                center,
-                normal,
-                radius,
-            } => finite(center) && finite(normal) && radius.is_finite(),
+            Shape::Circle3 { center, normal, radius } => finite(center) && finite(normal) && radius.is_finite(),
             Shape::Sphere { center, radius } => finite(center) && radius.is_finite(),
-            Shape::Cylinder {
-                point,
-                axis,
-                radius,
-            } => finite(point) && finite(axis) && radius.is_finite(),
-            Shape::Torus {
-                center,
-                axis,
-                major,
-                minor,
-            } => finite(center) && finite(axis) && major.is_finite() && minor.is_finite(),
+            Shape::Cylinder { point, axis, radius } => finite(point) && finite(axis) && radius.is_finite(),
+            Shape::Torus { center, axis, major, minor } => {
+                finite(center) && finite(axis) && major.is_finite() && minor.is_finite()
+            }
             Shape::Plane { point, normal } => finite(point) && finite(normal),
             Shape::Line { point, direction } => finite(point) && finite(direction),
             Shape::Naca4 { chord, origin, .. } => finite(origin) && chord.is_finite(),
@@ -248,9 +178,7 @@ impl Shape {
             Shape::Cylinder { axis, .. } | Shape::Torus { axis, .. } if !nonzero(axis) => {
                 bad("the axis must be non-zero")
             }
-            Shape::Line { direction, .. } if !nonzero(direction) => {
-                bad("the direction must be non-zero")
-            }
+            Shape::Line { direction, .. } if !nonzero(direction) => bad("the direction must be non-zero"),
             Shape::Torus { major, minor, .. } if !(*minor > 0.0 && *minor < *major) => {
                 bad("the torus radii must satisfy 0 < minor < major")
             }
@@ -268,14 +196,8 @@ impl Shape {
     /// 1 for curves (circle, circle3, line, naca4), 2 for surfaces.
     pub fn entity_dim(&self) -> usize {
         match self {
-            Shape::Circle { .. }
-            | Shape::Circle3 { .. }
-            | Shape::Line { .. }
-            | Shape::Naca4 { .. } => 1,
-            Shape::Sphere { .. }
-            | Shape::Cylinder { .. }
-            | Shape::Torus { .. }
-            | Shape::Plane { .. } => 2,
+            Shape::Circle { .. } | Shape::Circle3 { .. } | Shape::Line { .. } | Shape::Naca4 { .. } => 1,
+            Shape::Sphere { .. } | Shape::Cylinder { .. } | Shape::Torus { .. } | Shape::Plane { .. } => 2,
         }
     }
 
@@ -293,11 +215,7 @@ impl Shape {
                 let u = unit_or(d, [1.0, 0.0, 0.0]);
                 [center[0] + radius * u[0], center[1] + radius * u[1], 0.0]
             }
-            Shape::Circle3 {
-                center,
-                normal,
-                radius,
-            } => {
+            Shape::Circle3 { center, normal, radius } => {
                 let u = radial_direction(sub(x, *center), unit(*normal));
                 add(*center, scale(*radius, u))
             }
@@ -305,23 +223,14 @@ impl Shape {
                 let u = unit_or(sub(x, *center), [1.0, 0.0, 0.0]);
                 add(*center, scale(*radius, u))
             }
-            Shape::Cylinder {
-                point,
-                axis,
-                radius,
-            } => {
+            Shape::Cylinder { point, axis, radius } => {
                 let a = unit(*axis);
                 let d = sub(x, *point);
                 let t = dot(d, a);
                 let u = radial_direction(d, a);
                 add(add(*point, scale(t, a)), scale(*radius, u))
             }
-            Shape::Torus {
-                center,
-                axis,
-                major,
-                minor,
-            } => {
+            Shape::Torus { center, axis, major, minor } => {
                 let a = unit(*axis);
                 let e = radial_direction(sub(x, *center), a);
                 let q = add(*center, scale(*major, e));
@@ -336,11 +245,7 @@ impl Shape {
                 let a = unit(*direction);
                 add(*point, scale(dot(sub(x, *point), a), a))
             }
-            Shape::Naca4 {
-                digits,
-                chord,
-                origin,
-            } => match Naca4::from_digits(*digits, *chord, *origin) {
+            Shape::Naca4 { digits, chord, origin } => match Naca4::from_digits(*digits, *chord, *origin) {
                 Ok(foil) => {
                     let c = foil.closest_point([x[0], x[1]]);
                     [c[0], c[1], 0.0]
@@ -358,11 +263,7 @@ impl Shape {
                 let rho = (x[0] - center[0]).hypot(x[1] - center[1]);
                 (rho - radius).hypot(x[2])
             }
-            Shape::Circle3 {
-                center,
-                normal,
-                radius,
-            } => {
+            Shape::Circle3 { center, normal, radius } => {
                 let n = unit(*normal);
                 let d = sub(x, *center);
                 let h = dot(d, n);
@@ -370,17 +271,8 @@ impl Shape {
                 (rho - radius).hypot(h)
             }
             Shape::Sphere { center, radius } => (norm(sub(x, *center)) - radius).abs(),
-            Shape::Cylinder {
-                point,
-                axis,
-                radius,
-            } => (norm(cross(sub(x, *point), unit(*axis))) - radius).abs(),
-            Shape::Torus {
-                center,
-                axis,
-                major,
-                minor,
-            } => {
+            Shape::Cylinder { point, axis, radius } => (norm(cross(sub(x, *point), unit(*axis))) - radius).abs(),
+            Shape::Torus { center, axis, major, minor } => {
                 let a = unit(*axis);
                 let d = sub(x, *center);
                 let h = dot(d, a);
@@ -397,21 +289,12 @@ impl Shape {
 impl fmt::Display for Shape {
     /// Writes the CLI syntax read by [`Shape::parse`] (exact round trip).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let list = |v: &[f64]| {
-            v.iter()
-                .map(|x| format!("{x}"))
-                .collect::<Vec<_>>()
-                .join(",")
-        };
+        let list = |v: &[f64]| v.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(",");
         match self {
             Shape::Circle { center, radius } => {
                 write!(f, "circle:{}", list(&[center[0], center[1], *radius]))
             }
-            Shape::Circle3 {
-                center,
-                normal,
-                radius,
-            } => {
+            Shape::Circle3 { center, normal, radius } => {
                 let mut v = center.to_vec();
                 v.extend_from_slice(normal);
                 v.push(*radius);
@@ -422,22 +305,13 @@ impl fmt::Display for Shape {
                 v.push(*radius);
                 write!(f, "sphere:{}", list(&v))
             }
-            Shape::Cylinder {
-                point,
-                axis,
-                radius,
-            } => {
+            Shape::Cylinder { point, axis, radius } => {
                 let mut v = point.to_vec();
                 v.extend_from_slice(axis);
                 v.push(*radius);
                 write!(f, "cylinder:{}", list(&v))
             }
-            Shape::Torus {
-                center,
-                axis,
-                major,
-                minor,
-            } => {
+            Shape::Torus { center, axis, major, minor } => {
                 let mut v = center.to_vec();
                 v.extend_from_slice(axis);
                 v.extend_from_slice(&[*major, *minor]);
@@ -453,11 +327,7 @@ impl fmt::Display for Shape {
                 v.extend_from_slice(direction);
                 write!(f, "line:{}", list(&v))
             }
-            Shape::Naca4 {
-                digits,
-                chord,
-                origin,
-            } => {
+            Shape::Naca4 { digits, chord, origin } => {
                 let code: String = digits.iter().map(|d| char::from(b'0' + d % 10)).collect();
                 write!(f, "naca4:{code},{}", list(&[*chord, origin[0], origin[1]]))
             }
@@ -525,21 +395,15 @@ impl Projector for ShapeProjector {
         points: &[[f64; 3]],
         out: &mut [[f64; 3]],
     ) -> std::result::Result<(), String> {
-        let shape = self.get(entity_dim, tag).ok_or_else(|| {
-            format!("no analytic shape for the entity of dimension {entity_dim} with tag {tag}")
-        })?;
+        let shape = self
+            .get(entity_dim, tag)
+            .ok_or_else(|| format!("no analytic shape for the entity of dimension {entity_dim} with tag {tag}"))?;
         if points.len() != out.len() {
-            return Err(format!(
-                "{} points but an output buffer of {}",
-                points.len(),
-                out.len()
-            ));
+            return Err(format!("{} points but an output buffer of {}", points.len(), out.len()));
         }
         for (i, (x, o)) in points.iter().zip(out.iter_mut()).enumerate() {
             if !x.iter().all(|c| c.is_finite()) {
-                return Err(format!(
-                    "point {i} {x:?} (entity dim {entity_dim}, tag {tag}) is not finite"
-                ));
+                return Err(format!("point {i} {x:?} (entity dim {entity_dim}, tag {tag}) is not finite"));
             }
             let y = shape.closest_point(*x);
             if !y.iter().all(|c| c.is_finite()) {
@@ -571,11 +435,7 @@ pub(crate) fn scale(s: f64, a: [f64; 3]) -> [f64; 3] {
 }
 
 pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 
 pub(crate) fn norm(a: [f64; 3]) -> f64 {
@@ -611,9 +471,7 @@ fn radial_direction(d: [f64; 3], a: [f64; 3]) -> [f64; 3] {
 
 /// A unit vector perpendicular to the unit vector `n`.
 fn any_perpendicular(n: [f64; 3]) -> [f64; 3] {
-    let i = (0..3)
-        .min_by(|&i, &j| n[i].abs().total_cmp(&n[j].abs()))
-        .unwrap_or(0);
+    let i = (0..3).min_by(|&i, &j| n[i].abs().total_cmp(&n[j].abs())).unwrap_or(0);
     let mut e = [0.0; 3];
     e[i] = 1.0;
     unit(cross(n, e))
@@ -658,25 +516,14 @@ mod tests {
             Shape::Circle { center, radius } => {
                 for i in 0..20 * m {
                     let t = ang(i, 20 * m);
-                    out.push([
-                        center[0] + radius * t.cos(),
-                        center[1] + radius * t.sin(),
-                        0.0,
-                    ]);
+                    out.push([center[0] + radius * t.cos(), center[1] + radius * t.sin(), 0.0]);
                 }
             }
-            Shape::Circle3 {
-                center,
-                normal,
-                radius,
-            } => {
+            Shape::Circle3 { center, normal, radius } => {
                 let (_, e1, e2) = frame(*normal);
                 for i in 0..20 * m {
                     let t = ang(i, 20 * m);
-                    out.push(add(
-                        *center,
-                        add(scale(radius * t.cos(), e1), scale(radius * t.sin(), e2)),
-                    ));
+                    out.push(add(*center, add(scale(radius * t.cos(), e1), scale(radius * t.sin(), e2))));
                 }
             }
             Shape::Sphere { center, radius } => {
@@ -684,21 +531,11 @@ mod tests {
                     let th = PI * i as f64 / m as f64;
                     for j in 0..2 * m {
                         let ph = ang(j, 2 * m);
-                        out.push(add(
-                            *center,
-                            scale(
-                                *radius,
-                                [th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()],
-                            ),
-                        ));
+                        out.push(add(*center, scale(*radius, [th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()])));
                     }
                 }
             }
-            Shape::Cylinder {
-                point,
-                axis,
-                radius,
-            } => {
+            Shape::Cylinder { point, axis, radius } => {
                 let (a, e1, e2) = frame(*axis);
                 let t0 = dot(sub(x, *point), a);
                 for i in 0..=m {
@@ -710,12 +547,7 @@ mod tests {
                     }
                 }
             }
-            Shape::Torus {
-                center,
-                axis,
-                major,
-                minor,
-            } => {
+            Shape::Torus { center, axis, major, minor } => {
                 let (a, e1, e2) = frame(*axis);
                 for i in 0..2 * m {
                     let u = ang(i, 2 * m);
@@ -753,38 +585,13 @@ mod tests {
 
     fn test_shapes() -> Vec<Shape> {
         vec![
-            Shape::Circle {
-                center: [0.3, -0.2],
-                radius: 0.7,
-            },
-            Shape::Circle3 {
-                center: [0.1, 0.2, 0.3],
-                normal: [1.0, 2.0, -0.5],
-                radius: 0.6,
-            },
-            Shape::Sphere {
-                center: [0.1, -0.3, 0.2],
-                radius: 0.8,
-            },
-            Shape::Cylinder {
-                point: [0.2, 0.1, -0.1],
-                axis: [0.3, -1.0, 0.4],
-                radius: 0.45,
-            },
-            Shape::Torus {
-                center: [0.0, 0.1, -0.2],
-                axis: [0.2, 0.3, 1.0],
-                major: 0.9,
-                minor: 0.3,
-            },
-            Shape::Plane {
-                point: [0.1, 0.2, 0.3],
-                normal: [-1.0, 0.5, 2.0],
-            },
-            Shape::Line {
-                point: [0.1, 0.2, 0.3],
-                direction: [1.0, -2.0, 0.7],
-            },
+            Shape::Circle { center: [0.3, -0.2], radius: 0.7 },
+            Shape::Circle3 { center: [0.1, 0.2, 0.3], normal: [1.0, 2.0, -0.5], radius: 0.6 },
+            Shape::Sphere { center: [0.1, -0.3, 0.2], radius: 0.8 },
+            Shape::Cylinder { point: [0.2, 0.1, -0.1], axis: [0.3, -1.0, 0.4], radius: 0.45 },
+            Shape::Torus { center: [0.0, 0.1, -0.2], axis: [0.2, 0.3, 1.0], major: 0.9, minor: 0.3 },
+            Shape::Plane { point: [0.1, 0.2, 0.3], normal: [-1.0, 0.5, 2.0] },
+            Shape::Line { point: [0.1, 0.2, 0.3], direction: [1.0, -2.0, 0.7] },
         ]
     }
 
@@ -804,10 +611,7 @@ mod tests {
                 assert!(norm(sub(z, y)) <= 1e-14 * 4.0, "{shape}: not idempotent");
                 // The distance formula agrees with the closest point.
                 let d = norm(sub(x, y));
-                assert!(
-                    (d - shape.distance(x)).abs() <= 1e-13,
-                    "{shape}: {d} vs formula"
-                );
+                assert!((d - shape.distance(x)).abs() <= 1e-13, "{shape}: {d} vs formula");
             }
         }
     }
@@ -819,15 +623,9 @@ mod tests {
             for _ in 0..3 {
                 let x = rng.point([0.0; 3], 1.5);
                 let d = norm(sub(x, shape.closest_point(x)));
-                let brute = samples(&shape, x)
-                    .iter()
-                    .map(|s| norm(sub(x, *s)))
-                    .fold(f64::INFINITY, f64::min);
+                let brute = samples(&shape, x).iter().map(|s| norm(sub(x, *s))).fold(f64::INFINITY, f64::min);
                 assert!(d <= brute + 1e-12, "{shape}: {d} > brute force {brute}");
-                assert!(
-                    brute - d < 1e-2,
-                    "{shape}: sampling too coarse ({brute} vs {d})"
-                );
+                assert!(brute - d < 1e-2, "{shape}: sampling too coarse ({brute} vs {d})");
             }
         }
     }
@@ -835,101 +633,38 @@ mod tests {
     #[test]
     fn degenerate_points_give_a_valid_closest_point() {
         let cases = [
-            (
-                Shape::Sphere {
-                    center: [1.0, 2.0, 3.0],
-                    radius: 0.5,
-                },
-                [1.0, 2.0, 3.0],
-            ),
-            (
-                Shape::Circle {
-                    center: [1.0, 2.0],
-                    radius: 0.5,
-                },
-                [1.0, 2.0, 7.0],
-            ),
-            (
-                Shape::Circle3 {
-                    center: [1.0, 2.0, 3.0],
-                    normal: [0.0, 0.0, 2.0],
-                    radius: 0.5,
-                },
-                [1.0, 2.0, -4.0],
-            ),
-            (
-                Shape::Cylinder {
-                    point: [0.0; 3],
-                    axis: [1.0, 1.0, 1.0],
-                    radius: 0.5,
-                },
-                [2.0, 2.0, 2.0],
-            ),
-            (
-                Shape::Torus {
-                    center: [0.0; 3],
-                    axis: [0.0, 1.0, 0.0],
-                    major: 1.0,
-                    minor: 0.25,
-                },
-                [0.0, 3.0, 0.0],
-            ),
-            (
-                Shape::Torus {
-                    center: [0.0; 3],
-                    axis: [0.0, 0.0, 1.0],
-                    major: 1.0,
-                    minor: 0.25,
-                },
-                [0.0, 1.0, 0.0],
-            ),
+            (Shape::Sphere { center: [1.0, 2.0, 3.0], radius: 0.5 }, [1.0, 2.0, 3.0]),
+            (Shape::Circle { center: [1.0, 2.0], radius: 0.5 }, [1.0, 2.0, 7.0]),
+            (Shape::Circle3 { center: [1.0, 2.0, 3.0], normal: [0.0, 0.0, 2.0], radius: 0.5 }, [1.0, 2.0, -4.0]),
+            (Shape::Cylinder { point: [0.0; 3], axis: [1.0, 1.0, 1.0], radius: 0.5 }, [2.0, 2.0, 2.0]),
+            (Shape::Torus { center: [0.0; 3], axis: [0.0, 1.0, 0.0], major: 1.0, minor: 0.25 }, [0.0, 3.0, 0.0]),
+            (Shape::Torus { center: [0.0; 3], axis: [0.0, 0.0, 1.0], major: 1.0, minor: 0.25 }, [0.0, 1.0, 0.0]),
         ];
         for (shape, x) in cases {
             let y = shape.closest_point(x);
             assert!(y.iter().all(|c| c.is_finite()), "{shape}: {y:?}");
             assert!(shape.distance(y) < 1e-14, "{shape}: {y:?} off the shape");
             let d = norm(sub(x, y));
-            assert!(
-                (d - shape.distance(x)).abs() < 1e-14,
-                "{shape}: not closest"
-            );
+            assert!((d - shape.distance(x)).abs() < 1e-14, "{shape}: not closest");
         }
     }
 
     #[test]
     fn parse_round_trips() {
         let mut all = test_shapes();
-        all.push(Shape::Naca4 {
-            digits: [2, 4, 1, 2],
-            chord: 1.5,
-            origin: [-0.25, 0.125],
-        });
-        all.push(Shape::Torus {
-            center: [1e-7, -3.0, 0.1 + 0.2],
-            axis: [0.0, 0.0, 1.0],
-            major: 2.0,
-            minor: 1.0 / 3.0,
-        });
+        all.push(Shape::Naca4 { digits: [2, 4, 1, 2], chord: 1.5, origin: [-0.25, 0.125] });
+        all.push(Shape::Torus { center: [1e-7, -3.0, 0.1 + 0.2], axis: [0.0, 0.0, 1.0], major: 2.0, minor: 1.0 / 3.0 });
         for s in all {
             let text = s.to_string();
             assert_eq!(Shape::parse(&text).unwrap(), s, "{text}");
         }
         assert_eq!(
             Shape::parse(" Torus : 0, 0, 0, 2, 0.5").unwrap(),
-            Shape::Torus {
-                center: [0.0; 3],
-                axis: [0.0, 0.0, 1.0],
-                major: 2.0,
-                minor: 0.5
-            }
+            Shape::Torus { center: [0.0; 3], axis: [0.0, 0.0, 1.0], major: 2.0, minor: 0.5 }
         );
         assert_eq!(
             Shape::parse("naca4:0012,1,0,0").unwrap(),
-            Shape::Naca4 {
-                digits: [0, 0, 1, 2],
-                chord: 1.0,
-                origin: [0.0, 0.0]
-            }
+            Shape::Naca4 { digits: [0, 0, 1, 2], chord: 1.0, origin: [0.0, 0.0] }
         );
     }
 
@@ -984,20 +719,8 @@ mod tests {
     #[test]
     fn projector_projects_and_reports_errors() {
         let mut p = ShapeProjector::new();
-        p.insert(
-            3,
-            Shape::Sphere {
-                center: [0.0; 3],
-                radius: 2.0,
-            },
-        );
-        p.insert(
-            3,
-            Shape::Circle {
-                center: [0.0; 2],
-                radius: 1.0,
-            },
-        );
+        p.insert(3, Shape::Sphere { center: [0.0; 3], radius: 2.0 });
+        p.insert(3, Shape::Circle { center: [0.0; 2], radius: 1.0 });
         assert_eq!(p.len(), 2);
         assert!(p.get(2, 3).is_some() && p.get(1, 3).is_some() && p.get(2, 4).is_none());
         let pts = [[0.0, 0.0, 3.0], [4.0, 0.0, 0.0]];
@@ -1010,17 +733,9 @@ mod tests {
         let e = p.project(2, 7, &pts, &mut out).unwrap_err();
         assert!(e.contains("dimension 2") && e.contains("tag 7"), "{e}");
         assert!(p.project(2, 3, &pts, &mut out[..1]).is_err());
-        assert!(p
-            .project(2, 3, &[[f64::NAN, 0.0, 0.0]], &mut out[..1])
-            .is_err());
+        assert!(p.project(2, 3, &[[f64::NAN, 0.0, 0.0]], &mut out[..1]).is_err());
         // A hand-built invalid shape gives an error, not a panic or NaN.
-        p.insert(
-            9,
-            Shape::Plane {
-                point: [0.0; 3],
-                normal: [0.0; 3],
-            },
-        );
+        p.insert(9, Shape::Plane { point: [0.0; 3], normal: [0.0; 3] });
         assert!(p.project(2, 9, &pts, &mut out).is_err());
     }
 }

@@ -18,9 +18,7 @@
 use super::{io_err, write_atomically, write_f64, CellMeshView};
 use crate::error::{Error, Result};
 use crate::mesh::LinearMesh;
-use crate::reference::ordering::{
-    gmsh_element_shape, gmsh_element_type, gmsh_multi_indices, gmsh_type_info,
-};
+use crate::reference::ordering::{gmsh_element_shape, gmsh_element_type, gmsh_multi_indices, gmsh_type_info};
 use crate::reference::Simplex;
 use std::collections::HashMap;
 use std::io::Write;
@@ -53,10 +51,7 @@ pub struct ElementBlock {
 impl ElementBlock {
     /// Number of elements in the block.
     pub fn n_elements(&self) -> usize {
-        self.connectivity
-            .len()
-            .checked_div(self.nodes_per_element)
-            .unwrap_or(0)
+        self.connectivity.len().checked_div(self.nodes_per_element).unwrap_or(0)
     }
 }
 
@@ -94,9 +89,7 @@ pub fn to_linear_mesh(msh: &MshContent) -> Result<LinearMesh> {
     } else if msh.blocks.iter().any(|b| b.element_type == 2) {
         2
     } else {
-        return Err(Error::Io(
-            "no linear triangles (type 2) or tetrahedra (type 4) in the mesh".into(),
-        ));
+        return Err(Error::Io("no linear triangles (type 2) or tetrahedra (type 4) in the mesh".into()));
     };
     let (cell_type, facet_type) = if dim == 3 { (4, 2) } else { (2, 1) };
     let mut cells = Vec::new();
@@ -134,24 +127,18 @@ pub fn to_linear_mesh(msh: &MshContent) -> Result<LinearMesh> {
     let (coords, new_index) = compact(msh, &cells, dim)?;
     let renumber = |list: &mut Vec<usize>, what: &str| -> Result<()> {
         for v in list.iter_mut() {
-            *v = new_index.get(*v).copied().flatten().ok_or_else(|| {
-                Error::Io(format!("a {what} uses node {} which is in no cell", *v + 1))
-            })?;
+            *v = new_index
+                .get(*v)
+                .copied()
+                .flatten()
+                .ok_or_else(|| Error::Io(format!("a {what} uses node {} which is in no cell", *v + 1)))?;
         }
         Ok(())
     };
     renumber(&mut cells, "cell")?;
     renumber(&mut facets, "facet")?;
     renumber(&mut feature_edges, "feature edge")?;
-    Ok(LinearMesh {
-        dim,
-        coords,
-        cells,
-        facets,
-        facet_tags,
-        feature_edges,
-        feature_edge_tags,
-    })
+    Ok(LinearMesh { dim, coords, cells, facets, facet_tags, feature_edges, feature_edge_tags })
 }
 
 /// The high-order cells of the highest dimension having complete Lagrange
@@ -196,19 +183,12 @@ pub fn high_order_cells(msh: &MshContent) -> Result<(Simplex, usize, Vec<f64>, V
 
 /// Coordinates (`dim` components) of the nodes used by `cells`, in file order,
 /// and the new index of every old node (`None` if unused).
-fn compact(
-    msh: &MshContent,
-    cells: &[usize],
-    dim: usize,
-) -> Result<(Vec<f64>, Vec<Option<usize>>)> {
+fn compact(msh: &MshContent, cells: &[usize], dim: usize) -> Result<(Vec<f64>, Vec<Option<usize>>)> {
     let mut used = vec![false; msh.nodes.len()];
     for &v in cells {
-        *used.get_mut(v).ok_or_else(|| {
-            Error::Io(format!(
-                "cell node index {v} out of range ({} nodes)",
-                msh.nodes.len()
-            ))
-        })? = true;
+        *used
+            .get_mut(v)
+            .ok_or_else(|| Error::Io(format!("cell node index {v} out of range ({} nodes)", msh.nodes.len())))? = true;
     }
     let mut new_index = vec![None; msh.nodes.len()];
     let mut coords = Vec::new();
@@ -309,13 +289,7 @@ struct Binary {
 
 impl<'a> Parser<'a> {
     fn new(data: &'a [u8]) -> Self {
-        Parser {
-            data,
-            pos: 0,
-            line: 1,
-            section: "header",
-            binary: None,
-        }
+        Parser { data, pos: 0, line: 1, section: "header", binary: None }
     }
 
     fn err(&self, msg: impl std::fmt::Display) -> Error {
@@ -358,14 +332,11 @@ impl<'a> Parser<'a> {
             return Ok(None);
         }
         let bytes = self.data.get(start..self.pos).unwrap_or_default();
-        std::str::from_utf8(bytes)
-            .map(Some)
-            .map_err(|_| self.err("invalid UTF-8 in text"))
+        std::str::from_utf8(bytes).map(Some).map_err(|_| self.err("invalid UTF-8 in text"))
     }
 
     fn expect(&mut self, what: &str) -> Result<&'a str> {
-        self.token()?
-            .ok_or_else(|| self.err(format!("unexpected end of file, expected {what}")))
+        self.token()?.ok_or_else(|| self.err(format!("unexpected end of file, expected {what}")))
     }
 
     fn expect_exact(&mut self, want: &str) -> Result<()> {
@@ -382,25 +353,16 @@ impl<'a> Parser<'a> {
             return self.bin_size_t(b, what);
         }
         let t = self.expect(what)?;
-        t.parse().map_err(|_| {
-            self.err(format!(
-                "expected {what} (an unsigned integer), found '{t}'"
-            ))
-        })
+        t.parse().map_err(|_| self.err(format!("expected {what} (an unsigned integer), found '{t}'")))
     }
 
     fn i32(&mut self, what: &str) -> Result<i32> {
         if let Some(b) = self.binary {
             let bytes = self.bin_bytes::<4>(what)?;
-            return Ok(if b.little {
-                i32::from_le_bytes(bytes)
-            } else {
-                i32::from_be_bytes(bytes)
-            });
+            return Ok(if b.little { i32::from_le_bytes(bytes) } else { i32::from_be_bytes(bytes) });
         }
         let t = self.expect(what)?;
-        t.parse()
-            .map_err(|_| self.err(format!("expected {what} (an integer), found '{t}'")))
+        t.parse().map_err(|_| self.err(format!("expected {what} (an integer), found '{t}'")))
     }
 
     fn f64(&mut self, what: &str) -> Result<f64> {
@@ -413,8 +375,7 @@ impl<'a> Parser<'a> {
             }
         } else {
             let t = self.expect(what)?;
-            t.parse()
-                .map_err(|_| self.err(format!("expected {what} (a number), found '{t}'")))?
+            t.parse().map_err(|_| self.err(format!("expected {what} (a number), found '{t}'")))?
         };
         if x.is_finite() {
             Ok(x)
@@ -436,11 +397,7 @@ impl<'a> Parser<'a> {
     fn bin_size_t(&mut self, b: Binary, what: &str) -> Result<usize> {
         let v = if b.size_t == 4 {
             let x = self.bin_bytes::<4>(what)?;
-            u64::from(if b.little {
-                u32::from_le_bytes(x)
-            } else {
-                u32::from_be_bytes(x)
-            })
+            u64::from(if b.little { u32::from_le_bytes(x) } else { u32::from_be_bytes(x) })
         } else {
             let x = self.bin_bytes::<8>(what)?;
             if b.little {
@@ -466,8 +423,7 @@ impl<'a> Parser<'a> {
     }
 
     fn parse(mut self) -> Result<MshContent> {
-        self.expect_exact("$MeshFormat")
-            .map_err(|_| self.err("not an MSH file: it must start with $MeshFormat"))?;
+        self.expect_exact("$MeshFormat").map_err(|_| self.err("not an MSH file: it must start with $MeshFormat"))?;
         self.section = "$MeshFormat";
         self.mesh_format()?;
         let mut msh = MshContent::default();
@@ -527,11 +483,7 @@ impl<'a> Parser<'a> {
                 };
                 self.binary = Some(Binary { size_t, little });
             }
-            _ => {
-                return Err(self.err(format!(
-                    "unsupported file type {file_type} / data size {size_t}"
-                )))
-            }
+            _ => return Err(self.err(format!("unsupported file type {file_type} / data size {size_t}"))),
         }
         self.expect_exact("$EndMeshFormat")
     }
@@ -579,9 +531,9 @@ impl<'a> Parser<'a> {
                 (0, 0..=3) => 0,
                 (1, d @ 0..=3) => d as usize,
                 _ => {
-                    return Err(self.err(format!(
-                        "bad node block header (entity dim {entity_dim}, parametric {parametric})"
-                    )))
+                    return Err(
+                        self.err(format!("bad node block header (entity dim {entity_dim}, parametric {parametric})"))
+                    )
                 }
             };
             for _ in 0..n {
@@ -592,11 +544,7 @@ impl<'a> Parser<'a> {
                 tags.push(tag);
             }
             for _ in 0..n {
-                let x = [
-                    self.f64("an x coordinate")?,
-                    self.f64("a y coordinate")?,
-                    self.f64("a z coordinate")?,
-                ];
+                let x = [self.f64("an x coordinate")?, self.f64("a y coordinate")?, self.f64("a z coordinate")?];
                 for _ in 0..extra {
                     self.f64("a parametric coordinate")?;
                 }
@@ -604,10 +552,9 @@ impl<'a> Parser<'a> {
             }
         }
         if nodes.len() - first != n_nodes {
-            return Err(self.err(format!(
-                "the header announces {n_nodes} nodes, the blocks hold {}",
-                nodes.len() - first
-            )));
+            return Err(
+                self.err(format!("the header announces {n_nodes} nodes, the blocks hold {}", nodes.len() - first))
+            );
         }
         self.expect_exact("$EndNodes")
     }
@@ -629,9 +576,9 @@ impl<'a> Parser<'a> {
             let (dim, npe) = gmsh_element_shape(element_type)
                 .ok_or_else(|| self.err(format!("unsupported element type {element_type}")))?;
             if usize::try_from(entity_dim).ok() != Some(dim) {
-                return Err(self.err(format!(
-                    "element type {element_type} (dim {dim}) on an entity of dim {entity_dim}"
-                )));
+                return Err(
+                    self.err(format!("element type {element_type} (dim {dim}) on an entity of dim {entity_dim}"))
+                );
             }
             let mut connectivity = Vec::with_capacity(self.cap(n.saturating_mul(npe), 2));
             for _ in 0..n {
@@ -650,9 +597,7 @@ impl<'a> Parser<'a> {
             });
         }
         if total != n_elements {
-            return Err(self.err(format!(
-                "the header announces {n_elements} elements, the blocks hold {total}"
-            )));
+            return Err(self.err(format!("the header announces {n_elements} elements, the blocks hold {total}")));
         }
         self.expect_exact("$EndElements")
     }
@@ -796,10 +741,7 @@ $EndElements
         assert_eq!(mesh.dim, 3);
         assert_eq!(mesh.n_vertices(), 4); // node 5 is in no cell
         assert_eq!(mesh.cells, vec![0, 1, 2, 3]);
-        assert_eq!(
-            (mesh.facets.clone(), mesh.facet_tags.clone()),
-            (vec![0, 2, 1], vec![5])
-        );
+        assert_eq!((mesh.facets.clone(), mesh.facet_tags.clone()), (vec![0, 2, 1], vec![5]));
         assert_eq!(mesh.feature_edges, vec![0, 1]);
         assert_eq!(mesh.feature_edge_tags, vec![8]);
     }
@@ -807,18 +749,14 @@ $EndElements
     #[test]
     fn facet_on_node_outside_cells_is_an_error() {
         let bad = TET.replace("2 1 3 2\n", "2 1 3 5\n");
-        assert!(matches!(
-            to_linear_mesh(&parse_msh(&bad).unwrap()),
-            Err(Error::Io(_))
-        ));
+        assert!(matches!(to_linear_mesh(&parse_msh(&bad).unwrap()), Err(Error::Io(_))));
     }
 
     #[test]
     fn high_order_cells_are_rejected_by_to_linear_mesh() {
-        let bad = SQUARE.replace("3 4 1 4", "3 3 1 4").replace(
-            "2 1 2 2\n3 10 30 40\n4 20 50 40",
-            "2 1 9 1\n3 10 30 40 20 50 40",
-        );
+        let bad = SQUARE
+            .replace("3 4 1 4", "3 3 1 4")
+            .replace("2 1 2 2\n3 10 30 40\n4 20 50 40", "2 1 9 1\n3 10 30 40 20 50 40");
         let msh = parse_msh(&bad).unwrap();
         assert!(matches!(to_linear_mesh(&msh), Err(Error::Io(_))));
         let (s, p, coords, cells) = high_order_cells(&msh).unwrap();
@@ -842,24 +780,15 @@ $EndElements
         assert_io_err(&TET.replace("1 5 1 5", "1 6 1 5"), "announces 6 nodes");
         assert_io_err(&TET.replace("3 1 0 5", "3 1 0 6"), "$Nodes");
         assert_io_err(&TET.replace("4 4 1 4", "4 5 1 4"), "announces 5 elements");
-        assert_io_err(
-            &TET.replace("1 1 2 3 4", "1 1 2 3 44"),
-            "unknown node tag 44",
-        );
+        assert_io_err(&TET.replace("1 1 2 3 4", "1 1 2 3 44"), "unknown node tag 44");
         assert_io_err(&TET.replace("9 9 9", "9 nan 9"), "non-finite");
         assert_io_err(&TET.replace("9 9 9", "9 9 x"), "line 16");
         assert_io_err(&TET.replace("3\n4\n5\n", "3\n3\n5\n"), "appears twice");
-        assert_io_err(
-            &TET.replace("3 1 4 1", "3 1 999 1"),
-            "unsupported element type 999",
-        );
+        assert_io_err(&TET.replace("3 1 4 1", "3 1 999 1"), "unsupported element type 999");
         assert_io_err(&TET.replace("3 1 4 1", "2 1 4 1"), "on an entity of dim 2");
         assert_io_err(&TET.replace("$EndElements\n", ""), "$EndElements");
         assert_io_err(&TET.replace("$EndNodes", "$EndNode"), "expected $EndNodes");
-        assert_io_err(
-            &SQUARE.replace("$EndPhysicalNames", ""),
-            "missing $EndPhysicalNames",
-        );
+        assert_io_err(&SQUARE.replace("$EndPhysicalNames", ""), "missing $EndPhysicalNames");
         // Every truncation of a valid file is an error, never a panic.
         for cut in 0..TET.len() - 1 {
             if TET.is_char_boundary(cut) {
@@ -888,11 +817,7 @@ $EndElements
             (state % n as u64) as usize
         };
         let alphabet = b"0123456789 -.\n$eE\xff\x00";
-        for base in [
-            TET.as_bytes().to_vec(),
-            SQUARE.as_bytes().to_vec(),
-            tet_binary(),
-        ] {
+        for base in [TET.as_bytes().to_vec(), SQUARE.as_bytes().to_vec(), tet_binary()] {
             for _ in 0..3000 {
                 let mut data = base.clone();
                 for _ in 0..1 + rand(3) {
@@ -928,21 +853,14 @@ $EndElements
         let npc = multi.len();
         let coords = grid_nodes(simplex, p, &multi, 2);
         let cells: Vec<usize> = (0..2 * npc).rev().collect();
-        let view = CellMeshView {
-            simplex,
-            order: p,
-            coords: &coords,
-            cells: &cells,
-            cell_multi: &multi,
-        };
+        let view = CellMeshView { simplex, order: p, coords: &coords, cells: &cells, cell_multi: &multi };
         let mut buf = Vec::new();
         write_msh_to(&mut buf, &view).unwrap();
         let msh = parse_msh(std::str::from_utf8(&buf).unwrap()).unwrap();
         let (s, order, c2, cells2) = high_order_cells(&msh).unwrap();
         assert_eq!((s, order), (simplex, p));
         // Permute back from gmsh's order to the caller's.
-        let back = crate::reference::ordering::permutation(&gmsh_multi_indices(simplex, p), &multi)
-            .unwrap();
+        let back = crate::reference::ordering::permutation(&gmsh_multi_indices(simplex, p), &multi).unwrap();
         let d = simplex.dim();
         for (cell, cell2) in cells.chunks(npc).zip(cells2.chunks(npc)) {
             for k in 0..npc {
@@ -967,27 +885,11 @@ $EndElements
         let multi = gmsh_multi_indices(Simplex::Tri, 2);
         let coords = [0.0; 12];
         let cells = [0, 1, 2, 3, 4, 6];
-        let view = CellMeshView {
-            simplex: Simplex::Tri,
-            order: 2,
-            coords: &coords,
-            cells: &cells,
-            cell_multi: &multi,
-        };
-        assert!(matches!(
-            write_msh_to(Vec::new(), &view),
-            Err(Error::InvalidInput(_))
-        ));
-        let view = CellMeshView {
-            cells: &cells[..5],
-            ..view
-        };
+        let view = CellMeshView { simplex: Simplex::Tri, order: 2, coords: &coords, cells: &cells, cell_multi: &multi };
+        assert!(matches!(write_msh_to(Vec::new(), &view), Err(Error::InvalidInput(_))));
+        let view = CellMeshView { cells: &cells[..5], ..view };
         assert!(write_msh_to(Vec::new(), &view).is_err());
-        let view = CellMeshView {
-            cells: &[0, 1, 2, 3, 4, 5],
-            cell_multi: &multi[..5],
-            ..view
-        };
+        let view = CellMeshView { cells: &[0, 1, 2, 3, 4, 5], cell_multi: &multi[..5], ..view };
         assert!(write_msh_to(Vec::new(), &view).is_err());
     }
 
@@ -1055,15 +957,8 @@ $EndElements
     fn gmsh_sample(name: &str) -> (MshContent, [usize; 6]) {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data");
         let expected = std::fs::read_to_string(dir.join("gmsh_samples_expected.txt")).unwrap();
-        let row = expected
-            .lines()
-            .find(|l| l.split_whitespace().next() == Some(name))
-            .unwrap();
-        let v: Vec<usize> = row
-            .split_whitespace()
-            .skip(1)
-            .map(|t| t.parse().unwrap())
-            .collect();
+        let row = expected.lines().find(|l| l.split_whitespace().next() == Some(name)).unwrap();
+        let v: Vec<usize> = row.split_whitespace().skip(1).map(|t| t.parse().unwrap()).collect();
         let msh = read_msh(&dir.join(name)).unwrap();
         (msh, [v[0], v[1], v[2], v[3], v[4], v[5]])
     }
@@ -1074,8 +969,7 @@ $EndElements
         if mesh.dim == 2 {
             e(1, 0) * e(2, 1) - e(1, 1) * e(2, 0)
         } else {
-            e(1, 0) * (e(2, 1) * e(3, 2) - e(2, 2) * e(3, 1))
-                - e(1, 1) * (e(2, 0) * e(3, 2) - e(2, 2) * e(3, 0))
+            e(1, 0) * (e(2, 1) * e(3, 2) - e(2, 2) * e(3, 1)) - e(1, 1) * (e(2, 0) * e(3, 2) - e(2, 2) * e(3, 0))
                 + e(1, 2) * (e(2, 0) * e(3, 1) - e(2, 1) * e(3, 0))
         }
     }
@@ -1085,11 +979,7 @@ $EndElements
         for name in ["plate_hole_2d.msh", "plate_hole_2d_bin.msh", "box_3d.msh"] {
             let (msh, [dim, nv, nc, nf, ne, _]) = gmsh_sample(name);
             let mesh = to_linear_mesh(&msh).unwrap();
-            assert_eq!(
-                (mesh.dim, mesh.n_vertices(), mesh.n_cells(), mesh.n_facets()),
-                (dim, nv, nc, nf),
-                "{name}"
-            );
+            assert_eq!((mesh.dim, mesh.n_vertices(), mesh.n_cells(), mesh.n_facets()), (dim, nv, nc, nf), "{name}");
             assert_eq!(mesh.feature_edges.len() / 2, ne, "{name}");
             assert_eq!(mesh.feature_edge_tags.len(), ne, "{name}");
             assert!(mesh.facet_tags.iter().all(|&t| t > 0));
@@ -1100,16 +990,9 @@ $EndElements
         let ascii = to_linear_mesh(&gmsh_sample("plate_hole_2d.msh").0).unwrap();
         let binary = to_linear_mesh(&gmsh_sample("plate_hole_2d_bin.msh").0).unwrap();
         // gmsh's ASCII keeps 16 significant digits, its binary all 17.
-        assert_eq!(
-            (&ascii.cells, &ascii.facets),
-            (&binary.cells, &binary.facets)
-        );
+        assert_eq!((&ascii.cells, &ascii.facets), (&binary.cells, &binary.facets));
         assert_eq!(ascii.facet_tags, binary.facet_tags);
-        let gap = ascii
-            .coords
-            .iter()
-            .zip(&binary.coords)
-            .map(|(a, b)| (a - b).abs());
+        let gap = ascii.coords.iter().zip(&binary.coords).map(|(a, b)| (a - b).abs());
         assert!(gap.fold(0.0, f64::max) < 1e-14);
     }
 
@@ -1118,10 +1001,7 @@ $EndElements
         let (msh, [_, nv, nc, _, _, order]) = gmsh_sample("box_3d_p2.msh");
         assert!(matches!(to_linear_mesh(&msh), Err(Error::Io(_))));
         let (simplex, p, coords, cells) = high_order_cells(&msh).unwrap();
-        assert_eq!(
-            (simplex, p, coords.len() / 3, cells.len() / 10),
-            (Simplex::Tet, order, nv, nc)
-        );
+        assert_eq!((simplex, p, coords.len() / 3, cells.len() / 10), (Simplex::Tet, order, nv, nc));
         // The box is straight-sided: every node sits at its multi-index's
         // barycentric combination of the cell's vertices.
         let multi = gmsh_multi_indices(Simplex::Tet, 2);

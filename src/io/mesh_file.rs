@@ -12,10 +12,7 @@ use crate::{Error, Result};
 pub fn check_mesh_extension(path: &Path) -> Result<()> {
     match path.extension().and_then(|e| e.to_str()) {
         Some("msh") | Some("vtu") => Ok(()),
-        _ => Err(Error::InvalidInput(format!(
-            "output '{}' must end in .msh or .vtu",
-            path.display()
-        ))),
+        _ => Err(Error::InvalidInput(format!("output '{}' must end in .msh or .vtu", path.display()))),
     }
 }
 
@@ -24,11 +21,7 @@ pub fn check_mesh_extension(path: &Path) -> Result<()> {
 ///
 /// Both formats interpolate at equispaced reference nodes, so a mesh with
 /// optimal nodes is resampled there first (exact: same polynomial space).
-pub fn write_mesh(
-    path: &Path,
-    mesh: &HighOrderMesh,
-    cell_quality: Option<&[ElementQuality]>,
-) -> Result<()> {
+pub fn write_mesh(path: &Path, mesh: &HighOrderMesh, cell_quality: Option<&[ElementQuality]>) -> Result<()> {
     check_mesh_extension(path)?;
     let equi = NodeSet::new(mesh.simplex, mesh.order, NodeSpacing::Equispaced);
     let coords = if mesh.spacing == NodeSpacing::Equispaced {
@@ -45,16 +38,9 @@ pub fn write_mesh(
         cell_multi: &equi.multi,
     };
     if path.extension().and_then(|e| e.to_str()) == Some("vtu") {
-        let (q1, q3): (Vec<f64>, Vec<f64>) = cell_quality
-            .unwrap_or(&[])
-            .iter()
-            .map(|q| (q.q1, q.q3))
-            .unzip();
-        let cell_data: Vec<(&str, &[f64])> = if q3.is_empty() {
-            vec![]
-        } else {
-            vec![("Q3", &q3[..]), ("Q1", &q1[..])]
-        };
+        let (q1, q3): (Vec<f64>, Vec<f64>) = cell_quality.unwrap_or(&[]).iter().map(|q| (q.q1, q.q3)).unzip();
+        let cell_data: Vec<(&str, &[f64])> =
+            if q3.is_empty() { vec![] } else { vec![("Q3", &q3[..]), ("Q1", &q1[..])] };
         super::vtk::write_vtu(path, &view, &[], &cell_data)
     } else {
         super::gmsh::write_msh(path, &view)

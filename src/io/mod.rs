@@ -70,16 +70,10 @@ impl CellMeshView<'_> {
         let d = self.simplex.dim();
         let npc = self.nodes_per_cell();
         if !self.coords.len().is_multiple_of(d) {
-            return bad(format!(
-                "{} coordinates is not a multiple of dim = {d}",
-                self.coords.len()
-            ));
+            return bad(format!("{} coordinates is not a multiple of dim = {d}", self.coords.len()));
         }
         if !self.cells.len().is_multiple_of(npc) {
-            return bad(format!(
-                "{} cell entries is not a multiple of {npc} nodes per cell",
-                self.cells.len()
-            ));
+            return bad(format!("{} cell entries is not a multiple of {npc} nodes per cell", self.cells.len()));
         }
         if let Some(x) = self.coords.iter().find(|x| !x.is_finite()) {
             return bad(format!("non-finite coordinate {x}"));

@@ -48,9 +48,7 @@ pub fn write_vtu_with(
     cell_data: &[(&str, &[f64])],
     encoding: VtuEncoding,
 ) -> Result<()> {
-    write_atomically(path, |w| {
-        write_vtu_to(w, mesh, point_data, cell_data, encoding)
-    })
+    write_atomically(path, |w| write_vtu_to(w, mesh, point_data, cell_data, encoding))
 }
 
 /// Writes `mesh` with point and cell fields as a .vtu document into `w`.
@@ -132,25 +130,12 @@ pub fn write_vtu_to<W: Write>(
     .map_err(io_err)
 }
 
-fn fields<'a>(
-    data: &[(&str, &'a [f64])],
-    count: usize,
-    dim: usize,
-    what: &str,
-) -> Result<Vec<Array<'a>>> {
-    data.iter()
-        .map(|&(name, values)| field(name, values, count, dim, what))
-        .collect()
+fn fields<'a>(data: &[(&str, &'a [f64])], count: usize, dim: usize, what: &str) -> Result<Vec<Array<'a>>> {
+    data.iter().map(|&(name, values)| field(name, values, count, dim, what)).collect()
 }
 
 /// A point or cell field as an array, checking its length.
-fn field<'a>(
-    name: &str,
-    values: &'a [f64],
-    count: usize,
-    dim: usize,
-    what: &str,
-) -> Result<Array<'a>> {
+fn field<'a>(name: &str, values: &'a [f64], count: usize, dim: usize, what: &str) -> Result<Array<'a>> {
     let components = values.len().checked_div(count).unwrap_or(1);
     if components == 0 || values.len() != components * count {
         return Err(Error::InvalidInput(format!(
@@ -159,17 +144,10 @@ fn field<'a>(
         )));
     }
     if dim == 2 && components == 2 {
-        let padded = values
-            .chunks_exact(2)
-            .flat_map(|v| [v[0], v[1], 0.0])
-            .collect();
+        let padded = values.chunks_exact(2).flat_map(|v| [v[0], v[1], 0.0]).collect();
         return Ok(Array::new(Some(name), 3, Values::F64(Cow::Owned(padded))));
     }
-    Ok(Array::new(
-        Some(name),
-        components,
-        Values::F64(Cow::Borrowed(values)),
-    ))
+    Ok(Array::new(Some(name), components, Values::F64(Cow::Borrowed(values))))
 }
 
 enum Values<'a> {
@@ -187,11 +165,7 @@ struct Array<'a> {
 
 impl<'a> Array<'a> {
     fn new(name: Option<&str>, components: usize, values: Values<'a>) -> Self {
-        Array {
-            name: name.map(str::to_string),
-            components,
-            values,
-        }
+        Array { name: name.map(str::to_string), components, values }
     }
 
     fn has_non_finite(&self) -> bool {
@@ -296,33 +270,17 @@ mod tests {
 
     fn quadratic_triangle() -> (Vec<f64>, Vec<usize>, Vec<[usize; 4]>) {
         let multi = gmsh_multi_indices(Simplex::Tri, 2);
-        let coords = multi
-            .iter()
-            .flat_map(|a| [a[1] as f64 / 2.0, a[2] as f64 / 2.0])
-            .collect();
+        let coords = multi.iter().flat_map(|a| [a[1] as f64 / 2.0, a[2] as f64 / 2.0]).collect();
         (coords, (0..6).collect(), multi)
     }
 
     #[test]
     fn ascii_vtu_lists_points_cells_and_fields() {
         let (coords, cells, multi) = quadratic_triangle();
-        let view = CellMeshView {
-            simplex: Simplex::Tri,
-            order: 2,
-            coords: &coords,
-            cells: &cells,
-            cell_multi: &multi,
-        };
+        let view = CellMeshView { simplex: Simplex::Tri, order: 2, coords: &coords, cells: &cells, cell_multi: &multi };
         let disp = [0.5; 12];
         let mut buf = Vec::new();
-        write_vtu_to(
-            &mut buf,
-            &view,
-            &[("u<1>", &disp)],
-            &[("q", &[0.25])],
-            VtuEncoding::Ascii,
-        )
-        .unwrap();
+        write_vtu_to(&mut buf, &view, &[("u<1>", &disp)], &[("q", &[0.25])], VtuEncoding::Ascii).unwrap();
         let s = String::from_utf8(buf).unwrap();
         assert!(s.contains("NumberOfPoints=\"6\" NumberOfCells=\"1\""));
         assert!(s.contains("Name=\"u&lt;1&gt;\" NumberOfComponents=\"3\""));
@@ -335,22 +293,9 @@ mod tests {
     #[test]
     fn appended_vtu_has_consistent_offsets() {
         let (coords, cells, multi) = quadratic_triangle();
-        let view = CellMeshView {
-            simplex: Simplex::Tri,
-            order: 2,
-            coords: &coords,
-            cells: &cells,
-            cell_multi: &multi,
-        };
+        let view = CellMeshView { simplex: Simplex::Tri, order: 2, coords: &coords, cells: &cells, cell_multi: &multi };
         let mut buf = Vec::new();
-        write_vtu_to(
-            &mut buf,
-            &view,
-            &[],
-            &[("q", &[f64::NAN])],
-            VtuEncoding::AppendedRaw,
-        )
-        .unwrap();
+        write_vtu_to(&mut buf, &view, &[], &[("q", &[f64::NAN])], VtuEncoding::AppendedRaw).unwrap();
         let start = buf.windows(2).position(|w| w == b"\n_").unwrap() + 2;
         let end = buf.len() - b"\n</AppendedData>\n</VTKFile>\n".len();
         // q (1 f64), points (18 f64), connectivity (6 i64), offsets (1 i64), types (1 u8).
@@ -358,33 +303,15 @@ mod tests {
         let head = String::from_utf8_lossy(&buf[..start]);
         assert!(head.contains("offset=\"16\"")); // after q: 8 + 8
         let mut ascii = Vec::new();
-        let r = write_vtu_to(
-            &mut ascii,
-            &view,
-            &[],
-            &[("q", &[f64::NAN])],
-            VtuEncoding::Ascii,
-        );
+        let r = write_vtu_to(&mut ascii, &view, &[], &[("q", &[f64::NAN])], VtuEncoding::Ascii);
         assert!(matches!(r, Err(Error::InvalidInput(_))));
     }
 
     #[test]
     fn wrong_field_length_is_rejected() {
         let (coords, cells, multi) = quadratic_triangle();
-        let view = CellMeshView {
-            simplex: Simplex::Tri,
-            order: 2,
-            coords: &coords,
-            cells: &cells,
-            cell_multi: &multi,
-        };
-        let r = write_vtu_to(
-            Vec::new(),
-            &view,
-            &[("u", &[1.0; 7])],
-            &[],
-            VtuEncoding::Ascii,
-        );
+        let view = CellMeshView { simplex: Simplex::Tri, order: 2, coords: &coords, cells: &cells, cell_multi: &multi };
+        let r = write_vtu_to(Vec::new(), &view, &[("u", &[1.0; 7])], &[], VtuEncoding::Ascii);
         assert!(matches!(r, Err(Error::InvalidInput(_))));
     }
 }

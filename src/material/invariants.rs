@@ -66,13 +66,7 @@ impl Invariants {
         let h = cofactor(3, f);
         let sq = |m: &Mat3| -> f64 { m.iter().flatten().map(|x| x * x).sum() };
         let (i4, i5) = anisotropic_invariants(f, fibre);
-        Invariants {
-            i1: sq(f),
-            i2: sq(&h),
-            j: det(3, f),
-            i4,
-            i5,
-        }
+        Invariants { i1: sq(f), i2: sq(&h), j: det(3, f), i4, i5 }
     }
 }
 
@@ -123,18 +117,7 @@ fn spatial(f: &Mat3, fibre: &[f64; 3], anisotropic: bool) -> Spatial {
             g[I5][p][q] = a[p] * ba[q] + ba[p] * a[q];
         }
     }
-    Spatial {
-        b,
-        a,
-        inv: Invariants {
-            i1,
-            i2,
-            j,
-            i4: dot3(&a, &a),
-            i5: dot3(&a, &ba),
-        },
-        g,
-    }
+    Spatial { b, a, inv: Invariants { i1, i2, j, i4: dot3(&a, &a), i5: dot3(&a, &ba) }, g }
 }
 
 fn cauchy(s: &Spatial, d1: &[f64; 5]) -> Mat3 {
@@ -156,11 +139,7 @@ pub(crate) fn invariant_stress<M: InvariantEnergy>(m: &M, f: &Mat3, fibre: &[f64
 }
 
 /// σ and c of the module documentation.
-pub(crate) fn invariant_stress_and_tangent<M: InvariantEnergy>(
-    m: &M,
-    f: &Mat3,
-    fibre: &[f64; 3],
-) -> (Mat3, Tangent) {
+pub(crate) fn invariant_stress_and_tangent<M: InvariantEnergy>(m: &M, f: &Mat3, fibre: &[f64; 3]) -> (Mat3, Tangent) {
     let s = spatial(f, fibre, M::ANISOTROPIC);
     let (d1, d2) = m.derivatives(&s.inv);
     let sigma = cauchy(&s, &d1);
@@ -183,18 +162,12 @@ pub(crate) fn invariant_stress_and_tangent<M: InvariantEnergy>(
         for jj in 0..3 {
             for kk in 0..3 {
                 for l in 0..3 {
-                    let mut v: f64 = active
-                        .iter()
-                        .map(|&(p, q, h)| h * s.g[p][i][jj] * s.g[q][kk][l])
-                        .sum();
-                    v += d1[I2]
-                        * (b[i][jj] * b[kk][l] - 0.5 * (b[i][kk] * b[jj][l] + b[i][l] * b[jj][kk]));
+                    let mut v: f64 = active.iter().map(|&(p, q, h)| h * s.g[p][i][jj] * s.g[q][kk][l]).sum();
+                    v += d1[I2] * (b[i][jj] * b[kk][l] - 0.5 * (b[i][kk] * b[jj][l] + b[i][l] * b[jj][kk]));
                     v += d1[JAC]
                         * 0.25
                         * j
-                        * (delta(i, jj) * delta(kk, l)
-                            - delta(i, kk) * delta(jj, l)
-                            - delta(i, l) * delta(jj, kk));
+                        * (delta(i, jj) * delta(kk, l) - delta(i, kk) * delta(jj, l) - delta(i, l) * delta(jj, kk));
                     if M::ANISOTROPIC {
                         v += d1[I5]
                             * 0.5
@@ -234,10 +207,7 @@ mod tests {
         let p = [[1.1, 0.2, 0.0], [-0.1, 0.8, 0.0], [0.0, 0.0, 1.0]];
         let v = Invariants::of(&p, &[1.0, 0.0, 0.0]);
         let j2 = v.j * v.j;
-        let f22: f64 = (0..2)
-            .flat_map(|i| (0..2).map(move |k| (i, k)))
-            .map(|(i, k)| p[i][k] * p[i][k])
-            .sum();
+        let f22: f64 = (0..2).flat_map(|i| (0..2).map(move |k| (i, k))).map(|(i, k)| p[i][k] * p[i][k]).sum();
         assert!((v.i1 - (f22 + 1.0)).abs() < 1e-14);
         assert!((v.i2 - (f22 + j2)).abs() < 1e-14);
     }

@@ -62,14 +62,10 @@ impl LinearElastic {
     /// 0 ≤ `poisson` < 0.5 (the paper's range is [0.001, 0.495]).
     pub fn try_from_young_poisson(young: f64, poisson: f64) -> Result<LinearElastic> {
         if !(young.is_finite() && young > 0.0) {
-            return Err(Error::InvalidInput(format!(
-                "Young's modulus must be positive and finite, got {young}"
-            )));
+            return Err(Error::InvalidInput(format!("Young's modulus must be positive and finite, got {young}")));
         }
         if !(poisson.is_finite() && (0.0..0.5).contains(&poisson)) {
-            return Err(Error::InvalidInput(format!(
-                "Poisson's ratio must be in [0, 0.5), got {poisson}"
-            )));
+            return Err(Error::InvalidInput(format!("Poisson's ratio must be in [0, 0.5), got {poisson}")));
         }
         Ok(LinearElastic {
             lambda: young * poisson / ((1.0 + poisson) * (1.0 - 2.0 * poisson)),
@@ -151,24 +147,15 @@ impl MaterialModel {
     /// `Error::InvalidInput` for an unknown name.
     pub fn parse(s: &str) -> Result<MaterialModel> {
         let t = s.trim();
-        MaterialModel::ALL
-            .into_iter()
-            .find(|m| m.name().eq_ignore_ascii_case(t))
-            .ok_or_else(|| {
-                let names: Vec<&str> = MaterialModel::ALL.iter().map(|m| m.name()).collect();
-                Error::InvalidInput(format!(
-                    "unknown material {s:?}; expected one of {}",
-                    names.join(", ")
-                ))
-            })
+        MaterialModel::ALL.into_iter().find(|m| m.name().eq_ignore_ascii_case(t)).ok_or_else(|| {
+            let names: Vec<&str> = MaterialModel::ALL.iter().map(|m| m.name()).collect();
+            Error::InvalidInput(format!("unknown material {s:?}; expected one of {}", names.join(", ")))
+        })
     }
 
     /// True for the two models that use the fibre direction.
     pub fn is_transversely_isotropic(self) -> bool {
-        matches!(
-            self,
-            MaterialModel::TransverselyIsotropic | MaterialModel::TransverselyIsotropicLinear
-        )
+        matches!(self, MaterialModel::TransverselyIsotropic | MaterialModel::TransverselyIsotropicLinear)
     }
 }
 
@@ -185,12 +172,10 @@ pub fn make_material(model: MaterialModel, young: f64, poisson: f64) -> Result<B
     Ok(match model {
         MaterialModel::LinearElastic => Box::new(lin),
         MaterialModel::NeoHookean => Box::new(NeoHookean::from_lame(lin.lambda, lin.mu)),
-        MaterialModel::MooneyRivlin => {
-            Box::new(MooneyRivlin::from_lame(lin.lambda, lin.mu, lin.mu / 4.0))
+        MaterialModel::MooneyRivlin => Box::new(MooneyRivlin::from_lame(lin.lambda, lin.mu, lin.mu / 4.0)),
+        MaterialModel::NearlyIncompressibleMooneyRivlin => {
+            Box::new(NearlyIncompressibleMooneyRivlin::from_lame(lin.lambda, lin.mu, lin.mu / 2.0))
         }
-        MaterialModel::NearlyIncompressibleMooneyRivlin => Box::new(
-            NearlyIncompressibleMooneyRivlin::from_lame(lin.lambda, lin.mu, lin.mu / 2.0),
-        ),
         MaterialModel::TransverselyIsotropic => {
             let s = TiEngineeringConstants::paper_default(young, poisson).try_stiffness()?;
             Box::new(TransverselyIsotropic::from_stiffness(&s))
@@ -218,18 +203,8 @@ mod tests {
 
     #[test]
     fn out_of_range_parameters_are_rejected() {
-        for (e, nu) in [
-            (0.0, 0.3),
-            (-1.0, 0.3),
-            (1.0, 0.5),
-            (1.0, -0.1),
-            (f64::NAN, 0.2),
-            (1.0, f64::INFINITY),
-        ] {
-            assert!(
-                LinearElastic::try_from_young_poisson(e, nu).is_err(),
-                "{e} {nu}"
-            );
+        for (e, nu) in [(0.0, 0.3), (-1.0, 0.3), (1.0, 0.5), (1.0, -0.1), (f64::NAN, 0.2), (1.0, f64::INFINITY)] {
+            assert!(LinearElastic::try_from_young_poisson(e, nu).is_err(), "{e} {nu}");
         }
     }
 
@@ -253,19 +228,10 @@ mod tests {
         for m in MaterialModel::ALL {
             assert_eq!(MaterialModel::parse(m.name()).unwrap(), m);
             assert_eq!(make_material(m, 1.0, 0.3).unwrap().name(), m.name());
-            assert_eq!(
-                m.is_transversely_isotropic(),
-                m.name().starts_with("transversely")
-            );
+            assert_eq!(m.is_transversely_isotropic(), m.name().starts_with("transversely"));
         }
-        assert_eq!(
-            MaterialModel::parse("Neo-Hookean").unwrap(),
-            MaterialModel::NeoHookean
-        );
-        assert!(matches!(
-            MaterialModel::parse("rubber"),
-            Err(Error::InvalidInput(_))
-        ));
+        assert_eq!(MaterialModel::parse("Neo-Hookean").unwrap(), MaterialModel::NeoHookean);
+        assert!(matches!(MaterialModel::parse("rubber"), Err(Error::InvalidInput(_))));
     }
 
     #[test]
@@ -273,10 +239,7 @@ mod tests {
         for m in MaterialModel::ALL {
             assert!(make_material(m, -1.0, 0.3).is_err());
             assert!(make_material(m, 1.0, 0.5).is_err());
-            let linear = matches!(
-                m,
-                MaterialModel::LinearElastic | MaterialModel::TransverselyIsotropicLinear
-            );
+            let linear = matches!(m, MaterialModel::LinearElastic | MaterialModel::TransverselyIsotropicLinear);
             assert_eq!(make_material(m, 1.0, 0.3).unwrap().is_linear(), linear);
         }
     }

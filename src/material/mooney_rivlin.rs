@@ -23,11 +23,7 @@ pub struct MooneyRivlin {
 impl MooneyRivlin {
     /// λ = λ_lin and β = μ_lin/2 − α (SPEC default α = β = μ_lin/4).
     pub fn from_lame(lambda: f64, mu: f64, alpha: f64) -> MooneyRivlin {
-        MooneyRivlin {
-            alpha,
-            beta: 0.5 * mu - alpha,
-            lambda,
-        }
+        MooneyRivlin { alpha, beta: 0.5 * mu - alpha, lambda }
     }
 
     fn pressure_like(&self, j: f64) -> f64 {
@@ -39,8 +35,7 @@ impl InvariantEnergy for MooneyRivlin {
     const ANISOTROPIC: bool = false;
     fn psi(&self, v: &Invariants) -> f64 {
         let (a, b) = (self.alpha, self.beta);
-        a * v.i1 + b * v.i2 - 4.0 * b * v.j - 2.0 * a * v.j.ln()
-            + 0.5 * self.lambda * (v.j - 1.0).powi(2)
+        a * v.i1 + b * v.i2 - 4.0 * b * v.j - 2.0 * a * v.j.ln() + 0.5 * self.lambda * (v.j - 1.0).powi(2)
             - (3.0 * a - b)
     }
     fn derivatives(&self, v: &Invariants) -> ([f64; 5], [[f64; 5]; 5]) {
@@ -72,8 +67,7 @@ impl Material for MooneyRivlin {
         let mut s = [[0.0; 3]; 3];
         for i in 0..3 {
             for k in 0..3 {
-                s[i][k] = 2.0 / j * (self.alpha * b[i][k] + self.beta * (trb * b[i][k] - b2[i][k]))
-                    + p * delta(i, k);
+                s[i][k] = 2.0 / j * (self.alpha * b[i][k] + self.beta * (trb * b[i][k] - b2[i][k])) + p * delta(i, k);
             }
         }
         s
@@ -90,8 +84,7 @@ impl Material for MooneyRivlin {
             for jj in 0..3 {
                 for k in 0..3 {
                     for l in 0..3 {
-                        c[i][jj][k][l] = kb
-                            * (2.0 * b[i][jj] * b[k][l] - b[i][k] * b[jj][l] - b[i][l] * b[jj][k])
+                        c[i][jj][k][l] = kb * (2.0 * b[i][jj] * b[k][l] - b[i][k] * b[jj][l] - b[i][l] * b[jj][k])
                             + q * delta(i, jj) * delta(k, l)
                             - p * (delta(i, k) * delta(jj, l) + delta(i, l) * delta(jj, k));
                     }
@@ -124,9 +117,7 @@ mod tests {
     #[test]
     fn mooney_rivlin_default_split_is_alpha_equals_beta() {
         let ([m, _], lin) = models(0.3);
-        assert!(
-            (m.alpha - m.beta).abs() < 1e-15 && (m.alpha + m.beta - lin.mu / 2.0).abs() < 1e-15
-        );
+        assert!((m.alpha - m.beta).abs() < 1e-15 && (m.alpha + m.beta - lin.mu / 2.0).abs() < 1e-15);
     }
 
     #[test]

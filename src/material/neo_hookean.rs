@@ -53,8 +53,7 @@ impl Material for NeoHookean {
         let mut s = [[0.0; 3]; 3];
         for p in 0..3 {
             for q in 0..3 {
-                s[p][q] =
-                    self.mu / j * (b[p][q] - delta(p, q)) + self.lambda * (j - 1.0) * delta(p, q);
+                s[p][q] = self.mu / j * (b[p][q] - delta(p, q)) + self.lambda * (j - 1.0) * delta(p, q);
             }
         }
         s
@@ -64,10 +63,7 @@ impl Material for NeoHookean {
         let j = det(3, f);
         let a = self.lambda * (2.0 * j - 1.0);
         let m = self.mu / j - self.lambda * (j - 1.0);
-        (
-            self.stress(f, fibre),
-            super::tensor::isotropic_tangent(a, m),
-        )
+        (self.stress(f, fibre), super::tensor::isotropic_tangent(a, m))
     }
 }
 

@@ -23,9 +23,7 @@
 //! α J^(−2/3) I1 + κ/2 (J − 1)². β ≥ 0 requires α ≤ μ_lin/2;
 //! [`NearlyIncompressibleMooneyRivlin::from_lame`] accepts any such α.
 
-use super::invariants::{
-    invariant_stress, invariant_stress_and_tangent, InvariantEnergy, Invariants, I1, I2, JAC,
-};
+use super::invariants::{invariant_stress, invariant_stress_and_tangent, InvariantEnergy, Invariants, I1, I2, JAC};
 use super::{Material, Tangent};
 use crate::mapping::Mat3;
 
@@ -44,11 +42,7 @@ impl NearlyIncompressibleMooneyRivlin {
     /// giving β = 0). β < 0 (α > μ_lin/2) is accepted but makes Ψ non-convex in I2.
     pub fn from_lame(lambda: f64, mu: f64, alpha: f64) -> NearlyIncompressibleMooneyRivlin {
         let beta = (mu - 2.0 * alpha) / (3.0 * SQRT3);
-        NearlyIncompressibleMooneyRivlin {
-            alpha,
-            beta,
-            kappa: lambda + 4.0 * alpha / 3.0 + 2.0 * SQRT3 * beta,
-        }
+        NearlyIncompressibleMooneyRivlin { alpha, beta, kappa: lambda + 4.0 * alpha / 3.0 + 2.0 * SQRT3 * beta }
     }
 }
 
@@ -56,9 +50,7 @@ impl InvariantEnergy for NearlyIncompressibleMooneyRivlin {
     const ANISOTROPIC: bool = false;
     fn psi(&self, v: &Invariants) -> f64 {
         let (a, b, k) = (self.alpha, self.beta, self.kappa);
-        a * v.j.powf(-2.0 / 3.0) * v.i1
-            + b * v.i2.powf(1.5) / (v.j * v.j)
-            + 0.5 * k * (v.j - 1.0).powi(2)
+        a * v.j.powf(-2.0 / 3.0) * v.i1 + b * v.i2.powf(1.5) / (v.j * v.j) + 0.5 * k * (v.j - 1.0).powi(2)
             - (3.0 * a + 3.0 * SQRT3 * b)
     }
     fn derivatives(&self, v: &Invariants) -> ([f64; 5], [[f64; 5]; 5]) {
@@ -182,13 +174,11 @@ mod tests {
             let g = matmul(3, &h, &transpose(&h));
             let (trb, trg) = (b[0][0] + b[1][1] + b[2][2], g[0][0] + g[1][1] + g[2][2]);
             let (a, be, k) = (m.alpha, m.beta, m.kappa);
-            let p = k * (j - 1.0) - 2.0 * a / 3.0 * j.powf(-5.0 / 3.0) * trb
-                + be * j.powi(-3) * trg.powf(1.5);
+            let p = k * (j - 1.0) - 2.0 * a / 3.0 * j.powf(-5.0 / 3.0) * trb + be * j.powi(-3) * trg.powf(1.5);
             let mut s = [[0.0; 3]; 3];
             for i in 0..3 {
                 for l in 0..3 {
-                    s[i][l] = 2.0 * a * j.powf(-5.0 / 3.0) * b[i][l]
-                        - 3.0 * be * j.powi(-3) * trg.sqrt() * g[i][l]
+                    s[i][l] = 2.0 * a * j.powf(-5.0 / 3.0) * b[i][l] - 3.0 * be * j.powi(-3) * trg.sqrt() * g[i][l]
                         + p * delta(i, l);
                 }
             }

@@ -63,9 +63,7 @@ pub(crate) fn small_strain(f: &Mat3) -> Mat3 {
 /// A:B = A_ij B_ij.
 #[inline]
 pub(crate) fn ddot(a: &Mat3, b: &Mat3) -> f64 {
-    (0..3)
-        .map(|i| (0..3).map(|j| a[i][j] * b[i][j]).sum::<f64>())
-        .sum()
+    (0..3).map(|i| (0..3).map(|j| a[i][j] * b[i][j]).sum::<f64>()).sum()
 }
 
 /// Transpose.

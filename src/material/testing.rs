@@ -59,11 +59,7 @@ pub(crate) fn random_f(rng: &mut Rng, plane: bool) -> Mat3 {
 /// A random unit vector (in the plane for plane strain).
 pub(crate) fn random_unit(rng: &mut Rng, plane: bool) -> [f64; 3] {
     loop {
-        let v = [
-            rng.range(-1.0, 1.0),
-            rng.range(-1.0, 1.0),
-            if plane { 0.0 } else { rng.range(-1.0, 1.0) },
-        ];
+        let v = [rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), if plane { 0.0 } else { rng.range(-1.0, 1.0) }];
         let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         if n > 0.2 {
             return [v[0] / n, v[1] / n, v[2] / n];
@@ -91,11 +87,7 @@ pub(crate) fn max_abs(m: &Mat3) -> f64 {
 }
 
 pub(crate) fn max_abs_t(c: &Tangent) -> f64 {
-    c.iter()
-        .flatten()
-        .flatten()
-        .flatten()
-        .fold(0.0, |a, x| a.max(x.abs()))
+    c.iter().flatten().flatten().flatten().fold(0.0, |a, x| a.max(x.abs()))
 }
 
 pub(crate) fn max_diff(a: &Mat3, b: &Mat3) -> f64 {
@@ -261,17 +253,9 @@ pub(crate) fn assert_tangent_matches_fd_of_stress(m: &dyn Material, seed: u64) {
 pub(crate) fn assert_tangent_at_identity(m: &dyn Material, n: &[f64; 3], expected: &Tangent) {
     let (sigma, c) = m.stress_and_tangent(&IDENTITY, n);
     let s = max_abs_t(expected);
-    assert!(
-        max_abs(&sigma) <= 1e-12 * s,
-        "{}: σ(I) = {sigma:?}",
-        m.name()
-    );
+    assert!(max_abs(&sigma) <= 1e-12 * s, "{}: σ(I) = {sigma:?}", m.name());
     let d = max_diff_t(&c, expected);
-    assert!(
-        d <= 1e-10 * s,
-        "{}: c(I) differs from the linear tensor by {d:e} (scale {s:e})",
-        m.name()
-    );
+    assert!(d <= 1e-10 * s, "{}: c(I) differs from the linear tensor by {d:e} (scale {s:e})", m.name());
 }
 
 /// σ symmetric, c minor-symmetric and (if `major`) major-symmetric.
@@ -320,11 +304,7 @@ pub(crate) fn assert_objective(m: &dyn Material, seed: u64) {
                 }
             }
         }
-        assert!(
-            max_diff(&rs, &s1) <= 1e-11 * sc.max(max_abs(&s0)),
-            "{} σ not objective",
-            m.name()
-        );
+        assert!(max_diff(&rs, &s1) <= 1e-11 * sc.max(max_abs(&s0)), "{} σ not objective", m.name());
         // c rotated one index at a time.
         let mut t = c0;
         for slot in 0..4 {
@@ -347,11 +327,7 @@ pub(crate) fn assert_objective(m: &dyn Material, seed: u64) {
             }
             t = u;
         }
-        assert!(
-            max_diff_t(&t, &c1) <= 1e-11 * sc.max(max_abs_t(&c0)),
-            "{} c not objective",
-            m.name()
-        );
+        assert!(max_diff_t(&t, &c1) <= 1e-11 * sc.max(max_abs_t(&c0)), "{} c not objective", m.name());
     }
 }
 

@@ -63,31 +63,16 @@ impl TiEngineeringConstants {
     /// Invert the normal block of the compliance (module doc);
     /// `Error::InvalidInput` unless the compliance is positive definite.
     pub fn try_stiffness(&self) -> Result<TiStiffness> {
-        let &TiEngineeringConstants {
-            young: e,
-            poisson: nu,
-            young_axial: ea,
-            poisson_axial: nua,
-            shear_axial: ga,
-        } = self;
+        let &TiEngineeringConstants { young: e, poisson: nu, young_axial: ea, poisson_axial: nua, shear_axial: ga } =
+            self;
         let finite = [e, nu, ea, nua, ga].iter().all(|x| x.is_finite());
         // Positive definiteness: E, E_A, G_A > 0, |ν| < 1, 1 − ν − 2ν_A² E/E_A > 0.
-        if !(finite
-            && e > 0.0
-            && ea > 0.0
-            && ga > 0.0
-            && nu.abs() < 1.0
-            && 1.0 - nu - 2.0 * nua * nua * e / ea > 0.0)
-        {
+        if !(finite && e > 0.0 && ea > 0.0 && ga > 0.0 && nu.abs() < 1.0 && 1.0 - nu - 2.0 * nua * nua * e / ea > 0.0) {
             return Err(Error::InvalidInput(format!(
                 "transversely isotropic constants are not positive definite: {self:?}"
             )));
         }
-        let s: Mat3 = [
-            [1.0 / e, -nu / e, -nua / ea],
-            [-nu / e, 1.0 / e, -nua / ea],
-            [-nua / ea, -nua / ea, 1.0 / ea],
-        ];
+        let s: Mat3 = [[1.0 / e, -nu / e, -nua / ea], [-nu / e, 1.0 / e, -nua / ea], [-nua / ea, -nua / ea, 1.0 / ea]];
         let (c, _) = inverse(3, &s);
         Ok(TiStiffness {
             c11: c[0][0],
@@ -112,8 +97,7 @@ impl TiStiffness {
                     for l in 0..3 {
                         c[i][j][k][l] = self.c12 * delta(i, j) * delta(k, l)
                             + self.c66 * (delta(i, k) * delta(j, l) + delta(i, l) * delta(j, k))
-                            + (self.c13 - self.c12)
-                                * (delta(i, j) * a(k, l) + a(i, j) * delta(k, l))
+                            + (self.c13 - self.c12) * (delta(i, j) * a(k, l) + a(i, j) * delta(k, l))
                             + (self.c44 - self.c66)
                                 * (delta(i, k) * a(j, l)
                                     + delta(i, l) * a(j, k)
@@ -162,9 +146,7 @@ pub(crate) mod tests {
 
     fn model(nu: f64) -> TransverselyIsotropicLinear {
         TransverselyIsotropicLinear {
-            stiffness: TiEngineeringConstants::paper_default(1.0, nu)
-                .try_stiffness()
-                .unwrap(),
+            stiffness: TiEngineeringConstants::paper_default(1.0, nu).try_stiffness().unwrap(),
         }
     }
 
@@ -176,9 +158,7 @@ pub(crate) mod tests {
             row[i] = 1.0;
         }
         for col in 0..6 {
-            let piv = (col..6)
-                .max_by(|&x, &y| a[x][col].abs().total_cmp(&a[y][col].abs()))
-                .unwrap();
+            let piv = (col..6).max_by(|&x, &y| a[x][col].abs().total_cmp(&a[y][col].abs())).unwrap();
             a.swap(col, piv);
             inv.swap(col, piv);
             let d = a[col][col];
@@ -218,14 +198,7 @@ pub(crate) mod tests {
         let s = invert6(voigt(c));
         let e = 1.0 / s[0][0];
         let ea = 1.0 / s[2][2];
-        [
-            e,
-            -s[0][1] * e,
-            ea,
-            -s[0][2] * ea,
-            1.0 / s[3][3],
-            1.0 / s[5][5],
-        ]
+        [e, -s[0][1] * e, ea, -s[0][2] * ea, 1.0 / s[3][3], 1.0 / s[5][5]]
     }
 
     #[test]
@@ -237,10 +210,7 @@ pub(crate) mod tests {
             let got = engineering_from_tangent(&st.tangent(&[0.0, 0.0, 1.0]));
             let want = [2.0, nu, 5.0, nu, 1.0, 1.0 / (1.0 + nu)];
             for (g, w) in got.iter().zip(want) {
-                assert!(
-                    (g - w).abs() < 1e-12 * w.abs().max(1.0),
-                    "ν={nu}: {got:?} vs {want:?}"
-                );
+                assert!((g - w).abs() < 1e-12 * w.abs().max(1.0), "ν={nu}: {got:?} vs {want:?}");
             }
             // The other components are decoupled (no normal–shear coupling).
             let v = voigt(&st.tangent(&[0.0, 0.0, 1.0]));
@@ -264,9 +234,7 @@ pub(crate) mod tests {
 
     #[test]
     fn ti_linear_tensor_rotates_with_its_axis() {
-        let st = TiEngineeringConstants::paper_default(1.0, 0.3)
-            .try_stiffness()
-            .unwrap();
+        let st = TiEngineeringConstants::paper_default(1.0, 0.3).try_stiffness().unwrap();
         let c3 = st.tangent(&[0.0, 0.0, 1.0]);
         let mut rng = Rng::new(41);
         for _ in 0..5 {
@@ -283,11 +251,7 @@ pub(crate) mod tests {
                                 for r in 0..3 {
                                     for s in 0..3 {
                                         for t in 0..3 {
-                                            acc += q[i][p]
-                                                * q[j][r]
-                                                * q[k][s]
-                                                * q[l][t]
-                                                * c3[p][r][s][t];
+                                            acc += q[i][p] * q[j][r] * q[k][s] * q[l][t] * c3[p][r][s][t];
                                         }
                                     }
                                 }

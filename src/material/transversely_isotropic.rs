@@ -29,8 +29,7 @@
 //! but Ψ is not polyconvex (paper section 6).
 
 use super::invariants::{
-    invariant_stress, invariant_stress_and_tangent, InvariantEnergy, Invariants, I1, I2, I4, I5,
-    JAC,
+    invariant_stress, invariant_stress_and_tangent, InvariantEnergy, Invariants, I1, I2, I4, I5, JAC,
 };
 use super::{Material, Tangent, TiStiffness};
 use crate::mapping::Mat3;
@@ -56,15 +55,7 @@ impl TransverselyIsotropic {
         let eta1 = 4.0 * alpha - s.c44;
         let eta2 = 0.25 * (s.c13 - 4.0 * alpha - lambda);
         let gamma = (s.c33 - 12.0 * alpha + 4.0 * eta1 - 8.0 * eta2 - lambda) / 8.0;
-        TransverselyIsotropic {
-            alpha,
-            beta,
-            mu_tilde: 2.0 * alpha + 4.0 * beta,
-            lambda,
-            eta1,
-            eta2,
-            gamma,
-        }
+        TransverselyIsotropic { alpha, beta, mu_tilde: 2.0 * alpha + 4.0 * beta, lambda, eta1, eta2, gamma }
     }
 }
 
@@ -121,9 +112,7 @@ mod tests {
     use crate::mapping::{det, matmul};
 
     fn model(nu: f64) -> (TransverselyIsotropic, TiStiffness) {
-        let s = TiEngineeringConstants::paper_default(1.0, nu)
-            .try_stiffness()
-            .unwrap();
+        let s = TiEngineeringConstants::paper_default(1.0, nu).try_stiffness().unwrap();
         (TransverselyIsotropic::from_stiffness(&s), s)
     }
 
@@ -146,12 +135,7 @@ mod tests {
         let mut rng = Rng::new(63);
         for nu in POISSON_SWEEP {
             let (m, s) = model(nu);
-            for n in [
-                [0.0, 0.0, 1.0],
-                [-1.0, 0.0, 0.0],
-                random_unit(&mut rng, false),
-                random_unit(&mut rng, true),
-            ] {
+            for n in [[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], random_unit(&mut rng, false), random_unit(&mut rng, true)] {
                 assert_tangent_at_identity(&m, &n, &s.tangent(&n));
             }
         }
@@ -172,14 +156,7 @@ mod tests {
                 let (_, c) = m.stress_and_tangent(&IDENTITY, &[0.0, 0.0, 1.0]);
                 let got = engineering_from_tangent(&c);
                 // E, ν, E_A = 5E/2, ν_A = ν, G_A = E/2, G_T = E/(2(1+ν)).
-                let want = [
-                    young,
-                    nu,
-                    2.5 * young,
-                    nu,
-                    0.5 * young,
-                    young / (2.0 * (1.0 + nu)),
-                ];
+                let want = [young, nu, 2.5 * young, nu, 0.5 * young, young / (2.0 * (1.0 + nu))];
                 for (g, w) in got.iter().zip(want) {
                     let s = if w.abs() < 1.0 { 1.0 } else { young };
                     assert!((g - w).abs() < 1e-10 * s, "ν={nu}: {got:?} vs {want:?}");
@@ -211,12 +188,8 @@ mod tests {
             let j = det(3, &f);
             let b = matmul(3, &f, &transpose(&f));
             let b2 = matmul(3, &b, &b);
-            let a: Vec<f64> = (0..3)
-                .map(|i| (0..3).map(|k| f[i][k] * n[k]).sum())
-                .collect();
-            let ba: Vec<f64> = (0..3)
-                .map(|i| (0..3).map(|k| b[i][k] * a[k]).sum())
-                .collect();
+            let a: Vec<f64> = (0..3).map(|i| (0..3).map(|k| f[i][k] * n[k]).sum()).collect();
+            let ba: Vec<f64> = (0..3).map(|i| (0..3).map(|k| b[i][k] * a[k]).sum()).collect();
             let trb = b[0][0] + b[1][1] + b[2][2];
             let i4: f64 = a.iter().map(|x| x * x).sum();
             let mut s = [[0.0; 3]; 3];
@@ -225,9 +198,7 @@ mod tests {
                     s[p][q] = 2.0 / j
                         * ((m.alpha + m.eta2 * (i4 - 1.0)) * b[p][q]
                             + m.beta * (trb * b[p][q] - b2[p][q])
-                            + (m.eta1 + m.eta2 * (trb - 3.0) + 2.0 * m.gamma * (i4 - 1.0))
-                                * a[p]
-                                * a[q]
+                            + (m.eta1 + m.eta2 * (trb - 3.0) + 2.0 * m.gamma * (i4 - 1.0)) * a[p] * a[q]
                             - 0.5 * m.eta1 * (a[p] * ba[q] + ba[p] * a[q]))
                         + (m.lambda * (j - 1.0) - m.mu_tilde / j) * delta(p, q);
                 }

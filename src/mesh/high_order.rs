@@ -87,9 +87,7 @@ impl HighOrderMesh {
                     continue; // vertices do not move
                 }
                 for d in 0..dim {
-                    out[g * dim + d] = (0..npc)
-                        .map(|b| tab.values[a * npc + b] * self.coords[cell[b] * dim + d])
-                        .sum();
+                    out[g * dim + d] = (0..npc).map(|b| tab.values[a * npc + b] * self.coords[cell[b] * dim + d]).sum();
                 }
             }
         }
@@ -116,20 +114,10 @@ impl HighOrderMesh {
         let npc_lin = dim + 1;
         let per_edge = p.saturating_sub(1);
         let per_face = if p >= 3 { (p - 1) * (p - 2) / 2 } else { 0 };
-        let n_face_entities = if simplex == Simplex::Tet {
-            topo.faces.len()
-        } else {
-            0
-        };
+        let n_face_entities = if simplex == Simplex::Tet { topo.faces.len() } else { 0 };
         let npc = nodes.len();
-        let n_interior = npc
-            - npc_lin
-            - simplex.edges().len() * per_edge
-            - if simplex == Simplex::Tet {
-                4 * per_face
-            } else {
-                0
-            };
+        let n_interior =
+            npc - npc_lin - simplex.edges().len() * per_edge - if simplex == Simplex::Tet { 4 * per_face } else { 0 };
         let edge_base = nv;
         let face_base = edge_base + topo.edges.len() * per_edge;
         let interior_base = face_base + n_face_entities * per_face;
@@ -156,8 +144,7 @@ impl HighOrderMesh {
                         local_edges
                             .iter()
                             .position(|e| {
-                                (e[0] == support[0] && e[1] == support[1])
-                                    || (e[1] == support[0] && e[0] == support[1])
+                                (e[0] == support[0] && e[1] == support[1]) || (e[1] == support[0] && e[0] == support[1])
                             })
                             .expect("every vertex pair is an edge of a simplex"),
                     ),
@@ -193,9 +180,7 @@ impl HighOrderMesh {
                         let [i, j] = local_edges[le];
                         let (gi, gj) = (lv[i], lv[j]);
                         let count_at_min = if gi < gj { m[i] } else { m[j] };
-                        edge_base
-                            + topo.cell_edges[c * local_edges.len() + le] * per_edge
-                            + (p - count_at_min - 1)
+                        edge_base + topo.cell_edges[c * local_edges.len() + le] * per_edge + (p - count_at_min - 1)
                     }
                     Local::Face(lf) => {
                         let mut vs: [(usize, usize); 3] = [0, 1, 2].map(|k| {
@@ -226,15 +211,7 @@ impl HighOrderMesh {
         }
 
         let constraint = classify(linear, topo, p, n_nodes, edge_base, face_base)?;
-        Ok(HighOrderMesh {
-            simplex,
-            order: p,
-            spacing,
-            coords,
-            cells,
-            n_vertices: nv,
-            constraint,
-        })
+        Ok(HighOrderMesh { simplex, order: p, spacing, coords, cells, n_vertices: nv, constraint })
     }
 }
 
@@ -277,11 +254,7 @@ fn classify(
         }
     }
     // Tag of every boundary facet (None = untagged).
-    let n_facets = if dim == 3 {
-        topo.faces.len()
-    } else {
-        topo.edges.len()
-    };
+    let n_facets = if dim == 3 { topo.faces.len() } else { topo.edges.len() };
     let mut is_boundary = vec![false; n_facets];
     for &f in &topo.boundary_facets {
         is_boundary[f] = true;
@@ -289,11 +262,7 @@ fn classify(
     let mut facet_tag: Vec<Option<i32>> = vec![None; n_facets];
     let mut given = vec![false; n_facets];
     let edge_lookup = topo.edge_lookup();
-    let face_lookup = if dim == 3 {
-        topo.face_lookup()
-    } else {
-        HashMap::new()
-    };
+    let face_lookup = if dim == 3 { topo.face_lookup() } else { HashMap::new() };
     for (k, f) in linear.facets.chunks_exact(dim).enumerate() {
         let id = if dim == 2 {
             edge_lookup.get(&[f[0].min(f[1]), f[0].max(f[1])]).copied()
@@ -312,10 +281,7 @@ fn classify(
             }
         };
         if given[id] {
-            return Err(Error::InvalidInput(format!(
-                "boundary facet {:?} is tagged twice (facet {k})",
-                f
-            )));
+            return Err(Error::InvalidInput(format!("boundary facet {:?} is tagged twice (facet {k})", f)));
         }
         given[id] = true;
         facet_tag[id] = Some(linear.facet_tags[k]);
@@ -365,25 +331,15 @@ fn classify(
         let key = [e[0].min(e[1]), e[0].max(e[1])];
         let id = match edge_lookup.get(&key) {
             Some(&id) if edge_tagging[id] != Tagging::None => id,
-            _ => {
-                return Err(Error::InvalidInput(format!(
-                    "feature edge {k} {:?} is not an edge of the boundary",
-                    e
-                )))
-            }
+            _ => return Err(Error::InvalidInput(format!("feature edge {k} {:?} is not an edge of the boundary", e))),
         };
         if edge_given[id] {
-            return Err(Error::InvalidInput(format!(
-                "feature edge {:?} is tagged twice (edge {k})",
-                e
-            )));
+            return Err(Error::InvalidInput(format!("feature edge {:?} is tagged twice (edge {k})", e)));
         }
         edge_given[id] = true;
         for j in 0..per_edge {
-            constraint[edge_base + id * per_edge + j] = NodeConstraint::OnEntity {
-                dim: 1,
-                tag: linear.feature_edge_tags[k],
-            };
+            constraint[edge_base + id * per_edge + j] =
+                NodeConstraint::OnEntity { dim: 1, tag: linear.feature_edge_tags[k] };
         }
     }
     Ok(constraint)

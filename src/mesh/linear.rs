@@ -36,11 +36,7 @@ impl LinearMesh {
         self.facets = facets;
         self.facet_tags = tags;
         let (mut edges, mut etags) = (Vec::new(), Vec::new());
-        for (e, &t) in self
-            .feature_edges
-            .chunks_exact(2)
-            .zip(&self.feature_edge_tags)
-        {
+        for (e, &t) in self.feature_edges.chunks_exact(2).zip(&self.feature_edge_tags) {
             if keep(1, t) {
                 edges.extend_from_slice(e);
                 etags.push(t);

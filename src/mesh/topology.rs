@@ -34,8 +34,7 @@ pub fn signed_measure(dim: usize, x: &[[f64; 3]]) -> f64 {
     if dim == 2 {
         d(1, 0) * d(2, 1) - d(1, 1) * d(2, 0)
     } else {
-        d(1, 0) * (d(2, 1) * d(3, 2) - d(2, 2) * d(3, 1))
-            - d(1, 1) * (d(2, 0) * d(3, 2) - d(2, 2) * d(3, 0))
+        d(1, 0) * (d(2, 1) * d(3, 2) - d(2, 2) * d(3, 1)) - d(1, 1) * (d(2, 0) * d(3, 2) - d(2, 2) * d(3, 0))
             + d(1, 2) * (d(2, 0) * d(3, 1) - d(2, 1) * d(3, 0))
     }
 }
@@ -50,9 +49,7 @@ pub fn signed_measure(dim: usize, x: &[[f64; 3]]) -> f64 {
 pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
     let dim = mesh.dim;
     if dim != 2 && dim != 3 {
-        return Err(Error::InvalidInput(format!(
-            "dimension must be 2 or 3, got {dim}"
-        )));
+        return Err(Error::InvalidInput(format!("dimension must be 2 or 3, got {dim}")));
     }
     if !mesh.coords.len().is_multiple_of(dim) {
         return Err(Error::InvalidInput(format!(
@@ -62,20 +59,14 @@ pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
     }
     let nv = mesh.n_vertices();
     if let Some(i) = mesh.coords.iter().position(|c| !c.is_finite()) {
-        return Err(Error::InvalidInput(format!(
-            "vertex {} has a non-finite coordinate",
-            i / dim
-        )));
+        return Err(Error::InvalidInput(format!("vertex {} has a non-finite coordinate", i / dim)));
     }
     let npc = dim + 1;
     if mesh.cells.is_empty() {
         return Err(Error::InvalidInput("the mesh has no cells".into()));
     }
     if !mesh.cells.len().is_multiple_of(npc) {
-        return Err(Error::InvalidInput(format!(
-            "cell array length {} is not a multiple of {npc}",
-            mesh.cells.len()
-        )));
+        return Err(Error::InvalidInput(format!("cell array length {} is not a multiple of {npc}", mesh.cells.len())));
     }
     if !mesh.facets.len().is_multiple_of(dim) || mesh.facets.len() / dim != mesh.facet_tags.len() {
         return Err(Error::InvalidInput(format!(
@@ -85,9 +76,7 @@ pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
             dim
         )));
     }
-    if !mesh.feature_edges.len().is_multiple_of(2)
-        || mesh.feature_edges.len() / 2 != mesh.feature_edge_tags.len()
-    {
+    if !mesh.feature_edges.len().is_multiple_of(2) || mesh.feature_edges.len() / 2 != mesh.feature_edge_tags.len() {
         return Err(Error::InvalidInput(format!(
             "{} feature edge vertex indices and {} curve tags do not match",
             mesh.feature_edges.len(),
@@ -95,9 +84,7 @@ pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
         )));
     }
     if dim == 2 && !mesh.feature_edges.is_empty() {
-        return Err(Error::InvalidInput(
-            "feature edges are for 3D meshes; in 2D tag the boundary edges".into(),
-        ));
+        return Err(Error::InvalidInput("feature edges are for 3D meshes; in 2D tag the boundary edges".into()));
     }
     let mut out = mesh.clone();
     let mut reoriented = 0;
@@ -105,23 +92,17 @@ pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
     for (c, cell) in out.cells.chunks_exact_mut(npc).enumerate() {
         for &v in cell.iter() {
             if v >= nv {
-                return Err(Error::InvalidInput(format!(
-                    "cell {c} refers to vertex {v}, but there are {nv} vertices"
-                )));
+                return Err(Error::InvalidInput(format!("cell {c} refers to vertex {v}, but there are {nv} vertices")));
             }
         }
         let mut key = [usize::MAX; 4];
         key[..npc].copy_from_slice(cell);
         key[..npc].sort_unstable();
         if key[..npc].windows(2).any(|w| w[0] == w[1]) {
-            return Err(Error::InvalidInput(format!(
-                "cell {c} repeats a vertex: {cell:?}"
-            )));
+            return Err(Error::InvalidInput(format!("cell {c} repeats a vertex: {cell:?}")));
         }
         if let Some(first) = seen.insert(key, c) {
-            return Err(Error::InvalidInput(format!(
-                "cells {first} and {c} have the same vertices"
-            )));
+            return Err(Error::InvalidInput(format!("cells {first} and {c} have the same vertices")));
         }
         let x: Vec<[f64; 3]> = cell.iter().map(|&v| mesh.vertex(v)).collect();
         let mut h2: f64 = 0.0;
@@ -132,9 +113,7 @@ pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
         }
         let m = signed_measure(dim, &x);
         if m.abs() <= 1e-12 * h2.sqrt().powi(dim as i32) {
-            return Err(Error::InvalidInput(format!(
-                "cell {c} is degenerate (zero measure)"
-            )));
+            return Err(Error::InvalidInput(format!("cell {c} is degenerate (zero measure)")));
         }
         if m < 0.0 {
             cell.swap(dim - 1, dim);
@@ -161,9 +140,8 @@ pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
 impl Topology {
     /// Build edges, faces and the boundary of a validated, oriented mesh.
     pub fn new(mesh: &LinearMesh) -> Result<Topology> {
-        let simplex = Simplex::from_dim(mesh.dim).ok_or_else(|| {
-            Error::InvalidInput(format!("dimension must be 2 or 3, got {}", mesh.dim))
-        })?;
+        let simplex = Simplex::from_dim(mesh.dim)
+            .ok_or_else(|| Error::InvalidInput(format!("dimension must be 2 or 3, got {}", mesh.dim)))?;
         let npc = mesh.dim + 1;
         let nc = mesh.n_cells();
         let local_edges = simplex.edges();
@@ -221,42 +199,22 @@ impl Topology {
         };
         let mut boundary_vertex = vec![false; mesh.n_vertices()];
         for &f in &boundary_facets {
-            let vs: &[usize] = if simplex == Simplex::Tet {
-                &faces[f]
-            } else {
-                &edges[f]
-            };
+            let vs: &[usize] = if simplex == Simplex::Tet { &faces[f] } else { &edges[f] };
             for &v in vs {
                 boundary_vertex[v] = true;
             }
         }
-        Ok(Topology {
-            simplex,
-            edges,
-            cell_edges,
-            faces,
-            cell_faces,
-            boundary_facets,
-            boundary_vertex,
-        })
+        Ok(Topology { simplex, edges, cell_edges, faces, cell_faces, boundary_facets, boundary_vertex })
     }
 
     /// Map from sorted edge to global edge id.
     pub fn edge_lookup(&self) -> HashMap<[usize; 2], usize> {
-        self.edges
-            .iter()
-            .enumerate()
-            .map(|(i, &e)| (e, i))
-            .collect()
+        self.edges.iter().enumerate().map(|(i, &e)| (e, i)).collect()
     }
 
     /// Map from sorted face to global face id (3D).
     pub fn face_lookup(&self) -> HashMap<[usize; 3], usize> {
-        self.faces
-            .iter()
-            .enumerate()
-            .map(|(i, &f)| (f, i))
-            .collect()
+        self.faces.iter().enumerate().map(|(i, &f)| (f, i)).collect()
     }
 }
 
@@ -297,16 +255,12 @@ mod tests {
     fn bad_cells_are_rejected_with_a_message() {
         let mut m = two_triangles();
         m.cells = vec![0, 1, 7];
-        assert!(
-            matches!(validate_and_orient(&m), Err(Error::InvalidInput(s)) if s.contains("vertex 7"))
-        );
+        assert!(matches!(validate_and_orient(&m), Err(Error::InvalidInput(s)) if s.contains("vertex 7")));
         m.cells = vec![0, 1, 1];
         assert!(validate_and_orient(&m).is_err());
         m.coords = vec![0.0, 0.0, 1.0, 0.0, 2.0, 0.0, 0.0, 1.0];
         m.cells = vec![0, 1, 2];
-        assert!(
-            matches!(validate_and_orient(&m), Err(Error::InvalidInput(s)) if s.contains("degenerate"))
-        );
+        assert!(matches!(validate_and_orient(&m), Err(Error::InvalidInput(s)) if s.contains("degenerate")));
         m.cells = vec![];
         assert!(validate_and_orient(&m).is_err());
         let mut m = two_triangles();
@@ -314,9 +268,7 @@ mod tests {
         assert!(validate_and_orient(&m).is_err());
         let mut m = two_triangles();
         m.cells = vec![0, 1, 2, 2, 1, 0];
-        assert!(
-            matches!(validate_and_orient(&m), Err(Error::InvalidInput(s)) if s.contains("same vertices"))
-        );
+        assert!(matches!(validate_and_orient(&m), Err(Error::InvalidInput(s)) if s.contains("same vertices")));
     }
 
     #[test]

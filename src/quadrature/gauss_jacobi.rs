@@ -20,11 +20,7 @@ pub(crate) fn gamma(x: f64) -> f64 {
     let twice = 2.0 * x;
     if x <= 170.0 && twice == twice.round() {
         // Γ(n) = (n−1)!, Γ(n + 1/2) = √π · Π_{k=0}^{n−1} (k + 1/2).
-        let (mut g, mut t) = if x == x.round() {
-            (1.0, 1.0)
-        } else {
-            (PI.sqrt(), 0.5)
-        };
+        let (mut g, mut t) = if x == x.round() { (1.0, 1.0) } else { (PI.sqrt(), 0.5) };
         while t < x - 0.25 {
             g *= t;
             t += 1.0;
@@ -63,26 +59,20 @@ pub(crate) fn gamma(x: f64) -> f64 {
 fn jacobi_recurrence(k: usize, alpha: f64, beta: f64) -> (f64, f64) {
     let kf = k as f64;
     let s = 2.0 * kf + alpha + beta;
-    let a = if k == 0 {
-        (beta - alpha) / (alpha + beta + 2.0)
-    } else {
-        (beta * beta - alpha * alpha) / (s * (s + 2.0))
-    };
+    let a =
+        if k == 0 { (beta - alpha) / (alpha + beta + 2.0) } else { (beta * beta - alpha * alpha) / (s * (s + 2.0)) };
     let b = match k {
         0 => 0.0,
         // the factor (k + α + β) / (2k + α + β − 1) is 1 at k = 1.
         1 => (4.0 * (1.0 + alpha) * (1.0 + beta) / ((s * s) * (s + 1.0))).sqrt(),
-        _ => (4.0 * kf * (kf + alpha) * (kf + beta) * (kf + alpha + beta)
-            / (s * s * (s + 1.0) * (s - 1.0)))
-            .sqrt(),
+        _ => (4.0 * kf * (kf + alpha) * (kf + beta) * (kf + alpha + beta) / (s * s * (s + 1.0) * (s - 1.0))).sqrt(),
     };
     (a, b)
 }
 
 /// Total mass μ_0 = ∫_{−1}^{1} (1−x)^α (1+x)^β dx = 2^{α+β+1} Γ(α+1) Γ(β+1) / Γ(α+β+2).
 fn jacobi_mass(alpha: f64, beta: f64) -> f64 {
-    2f64.powf(alpha + beta + 1.0) * gamma(alpha + 1.0) * gamma(beta + 1.0)
-        / gamma(alpha + beta + 2.0)
+    2f64.powf(alpha + beta + 1.0) * gamma(alpha + 1.0) * gamma(beta + 1.0) / gamma(alpha + beta + 2.0)
 }
 
 /// Number of eigenvalues of the Jacobi matrix (diagonal `a`, off-diagonal
@@ -91,11 +81,7 @@ fn sturm_count(a: &[f64], b: &[f64], x: f64) -> usize {
     let mut count = 0;
     let mut q = 1.0;
     for i in 0..a.len() {
-        q = if i == 0 {
-            a[0] - x
-        } else {
-            a[i] - x - b[i] * b[i] / q
-        };
+        q = if i == 0 { a[0] - x } else { a[i] - x - b[i] * b[i] / q };
         if q == 0.0 {
             q = -f64::EPSILON * (1.0 + x.abs());
         }
@@ -269,16 +255,9 @@ mod tests {
                 assert!(x.windows(2).all(|p| p[0] < p[1]));
                 assert!(x.iter().all(|&xi| xi > -1.0 && xi < 1.0));
                 for k in 0..2 * n {
-                    let q: f64 = x
-                        .iter()
-                        .zip(&w)
-                        .map(|(xi, wi)| wi * (1.0 + xi).powi(k as i32))
-                        .sum();
+                    let q: f64 = x.iter().zip(&w).map(|(xi, wi)| wi * (1.0 + xi).powi(k as i32)).sum();
                     let e = exact_shifted_moment(alpha, beta, k);
-                    assert!(
-                        (q - e).abs() <= 1e-13 * e,
-                        "α={alpha} β={beta} n={n} k={k}: {q} vs {e}"
-                    );
+                    assert!((q - e).abs() <= 1e-13 * e, "α={alpha} β={beta} n={n} k={k}: {q} vs {e}");
                 }
             }
         }
@@ -304,16 +283,8 @@ mod tests {
                 assert_eq!(x[i], -x[n - 1 - i]);
             }
             for k in 0..=(2 * n - 3) {
-                let q: f64 = x
-                    .iter()
-                    .zip(&w)
-                    .map(|(xi, wi)| wi * xi.powi(k as i32))
-                    .sum();
-                let e = if k % 2 == 1 {
-                    0.0
-                } else {
-                    2.0 / (k + 1) as f64
-                };
+                let q: f64 = x.iter().zip(&w).map(|(xi, wi)| wi * xi.powi(k as i32)).sum();
+                let e = if k % 2 == 1 { 0.0 } else { 2.0 / (k + 1) as f64 };
                 assert!((q - e).abs() < 1e-13, "n={n} k={k}: {q} vs {e}");
             }
         }

@@ -119,16 +119,10 @@ mod tests {
                             .points
                             .iter()
                             .zip(&rule.weights)
-                            .map(|(x, w)| {
-                                w * x[0].powi(a as i32) * x[1].powi(b as i32) * x[2].powi(c as i32)
-                            })
+                            .map(|(x, w)| w * x[0].powi(a as i32) * x[1].powi(b as i32) * x[2].powi(c as i32))
                             .sum();
-                        let e =
-                            factorial(a) * factorial(b) * factorial(c) / factorial(a + b + c + dim);
-                        assert!(
-                            (q - e).abs() <= 1e-13 * e,
-                            "{simplex:?} p={p} ({a},{b},{c}): {q} vs {e}"
-                        );
+                        let e = factorial(a) * factorial(b) * factorial(c) / factorial(a + b + c + dim);
+                        assert!((q - e).abs() <= 1e-13 * e, "{simplex:?} p={p} ({a},{b},{c}): {q} vs {e}");
                     }
                 }
             }
@@ -162,17 +156,9 @@ mod tests {
         for deg in 0..=21 {
             let r = line_rule(deg);
             assert!(r.weights.iter().all(|&w| w > 0.0));
-            assert!(r
-                .points
-                .iter()
-                .all(|p| p[0] > 0.0 && p[0] < 1.0 && p[1] == 0.0));
+            assert!(r.points.iter().all(|p| p[0] > 0.0 && p[0] < 1.0 && p[1] == 0.0));
             for k in 0..=deg {
-                let q: f64 = r
-                    .points
-                    .iter()
-                    .zip(&r.weights)
-                    .map(|(p, w)| w * p[0].powi(k as i32))
-                    .sum();
+                let q: f64 = r.points.iter().zip(&r.weights).map(|(p, w)| w * p[0].powi(k as i32)).sum();
                 let e = 1.0 / (k + 1) as f64;
                 assert!((q - e).abs() < 1e-14 * e, "deg={deg} k={k}");
             }

@@ -29,12 +29,21 @@ pub fn sampling_cache(basis: &LagrangeBasis) -> ElementCache {
     ElementCache::at_points(basis, &points)
 }
 
-/// Q1, Q2, Q3 of one element.
+/// Q1..Q5 of one element (Q4, Q5 are NaN without a fibre direction).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ElementQuality {
     pub q1: f64,
     pub q2: f64,
     pub q3: f64,
+    /// sqrt(min I4 / max I4), I4 = FN·FN (transversely isotropic models).
+    pub q4: f64,
+    /// sqrt(min I5 / max I5), I5 = FᵀFN·FᵀFN.
+    pub q5: f64,
+}
+
+impl ElementQuality {
+    /// The quality of an affine (straight-sided) element.
+    pub const PERFECT: ElementQuality = ElementQuality { q1: 1.0, q2: 1.0, q3: 1.0, q4: f64::NAN, q5: f64::NAN };
 }
 
 impl ElementQuality {
@@ -52,6 +61,9 @@ pub struct MeshQuality {
     pub min_q1: f64,
     pub min_q2: f64,
     pub min_q3: f64,
+    /// NaN unless fibres were given (transversely isotropic models).
+    pub min_q4: f64,
+    pub min_q5: f64,
     pub mean_q3: f64,
     /// Number of elements with J ≤ 0 at a sample point.
     pub n_invalid: usize,
@@ -62,8 +74,9 @@ pub struct MeshQuality {
 }
 
 /// Quality of one element with node coordinates `xe` (`dim` components per
-/// node, native ordering, the first dim+1 nodes being the vertices).
-pub fn element_quality(cache: &ElementCache, xe: &[f64]) -> ElementQuality {
+/// node, native ordering, the first dim+1 nodes being the vertices), with
+/// Q4 and Q5 when a unit `fibre` N is given.
+pub fn element_quality(cache: &ElementCache, xe: &[f64], fibre: Option<&[f64; 3]>) -> ElementQuality {
     let dim = cache.dim;
     let xv: Vec<[f64; 3]> = (0..=dim)
         .map(|a| {
@@ -76,6 +89,7 @@ pub fn element_quality(cache: &ElementCache, xe: &[f64]) -> ElementQuality {
     let (mut i1min, mut i1max) = (f64::INFINITY, 0.0f64);
     let (mut i2min, mut i2max) = (f64::INFINITY, 0.0f64);
     let (mut jmin, mut jmax, mut jabsmax) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
+    let (mut i4min, mut i4max, mut i5min, mut i5max) = (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64);
     for q in 0..cache.n_points() {
         let dxdxi = mapping::jacobian(dim, xe, cache.grads_at(q));
         let f = mapping::matmul(dim, &dxdxi, &jx_inv);
@@ -88,6 +102,29 @@ pub fn element_quality(cache: &ElementCache, xe: &[f64]) -> ElementQuality {
             }
         }
         let j = mapping::det(dim, &f);
+        if let Some(n) = fibre {
+            // I4 = FN·FN, I5 = FᵀFN·FᵀFN (2D: in-plane part of N; F33 = 1).
+            let mut fn_ = [0.0; 3];
+            for i in 0..dim {
+                fn_[i] = (0..dim).map(|k| f[i][k] * n[k]).sum();
+            }
+            if dim == 2 {
+                fn_[2] = n[2];
+            }
+            let i4: f64 = fn_.iter().map(|v| v * v).sum();
+            let mut ftfn = [0.0; 3];
+            for i in 0..dim {
+                ftfn[i] = (0..dim).map(|k| f[k][i] * fn_[k]).sum();
+            }
+            if dim == 2 {
+                ftfn[2] = fn_[2];
+            }
+            let i5: f64 = ftfn.iter().map(|v| v * v).sum();
+            i4min = i4min.min(i4);
+            i4max = i4max.max(i4);
+            i5min = i5min.min(i5);
+            i5max = i5max.max(i5);
+        }
         i1min = i1min.min(i1);
         i1max = i1max.max(i1);
         i2min = i2min.min(i2);
@@ -104,39 +141,38 @@ pub fn element_quality(cache: &ElementCache, xe: &[f64]) -> ElementQuality {
         -1.0
     };
     let ratio = |lo: f64, hi: f64| if hi > 0.0 { (lo / hi).sqrt() } else { 0.0 };
-    let q = ElementQuality {
-        q1: ratio(i1min, i1max),
-        q2: ratio(i2min, i2max),
-        q3,
+    let (q4, q5) = match fibre {
+        Some(_) => (ratio(i4min, i4max), ratio(i5min, i5max)),
+        None => (f64::NAN, f64::NAN),
     };
+    let q = ElementQuality { q1: ratio(i1min, i1max), q2: ratio(i2min, i2max), q3, q4, q5 };
     if q.q1.is_nan() || q.q2.is_nan() || q.q3.is_nan() {
         // Non-finite geometry: report as invalid rather than propagate NaN.
-        return ElementQuality {
-            q1: 0.0,
-            q2: 0.0,
-            q3: -1.0,
-        };
+        return ElementQuality { q1: 0.0, q2: 0.0, q3: -1.0, q4, q5 };
     }
     q
 }
 
-/// Quality of every cell of a mesh given its coordinates and connectivity.
+/// Quality of every cell of a mesh given its coordinates and connectivity
+/// (and per-cell fibres for Q4, Q5).
 pub fn cell_qualities(
     cache: &ElementCache,
     coords: &[f64],
     cells: &[usize],
+    fibres: Option<&[[f64; 3]]>,
 ) -> Vec<ElementQuality> {
     let dim = cache.dim;
     let npc = cache.n_basis;
     cells
         .par_chunks_exact(npc)
+        .enumerate()
         .map_init(
             || vec![0.0; npc * dim],
-            |xe, cell| {
+            |xe, (c, cell)| {
                 for (a, &n) in cell.iter().enumerate() {
                     xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
                 }
-                element_quality(cache, xe)
+                element_quality(cache, xe, fibres.map(|f| &f[c]))
             },
         )
         .collect()
@@ -148,6 +184,8 @@ pub fn summarize(q: &[ElementQuality]) -> MeshQuality {
         min_q1: f64::INFINITY,
         min_q2: f64::INFINITY,
         min_q3: f64::INFINITY,
+        min_q4: f64::NAN,
+        min_q5: f64::NAN,
         mean_q3: 0.0,
         n_invalid: 0,
         worst_cell: 0,
@@ -156,6 +194,9 @@ pub fn summarize(q: &[ElementQuality]) -> MeshQuality {
     for (c, e) in q.iter().enumerate() {
         m.min_q1 = m.min_q1.min(e.q1);
         m.min_q2 = m.min_q2.min(e.q2);
+        // f64::min ignores NaN, so these stay NaN only when no cell has Q4/Q5.
+        m.min_q4 = m.min_q4.min(e.q4);
+        m.min_q5 = m.min_q5.min(e.q5);
         if e.q3 < m.min_q3 {
             m.min_q3 = e.q3;
             m.worst_cell = c;
@@ -202,15 +243,11 @@ mod tests {
                 .coords
                 .iter()
                 .flat_map(|x| {
-                    let y = [
-                        2.0 * x[0] + 0.5 * x[1],
-                        0.3 * x[0] + 1.5 * x[1] - 0.2 * x[2],
-                        x[2] + 0.1 * x[0],
-                    ];
+                    let y = [2.0 * x[0] + 0.5 * x[1], 0.3 * x[0] + 1.5 * x[1] - 0.2 * x[2], x[2] + 0.1 * x[0]];
                     y[..simplex.dim()].to_vec()
                 })
                 .collect();
-            let q = element_quality(&cache, &xe);
+            let q = element_quality(&cache, &xe, None);
             for v in [q.q1, q.q2, q.q3] {
                 assert!((v - 1.0).abs() < 1e-12, "{simplex:?}: {q:?}");
             }
@@ -221,7 +258,7 @@ mod tests {
     fn curved_p2_triangle_scaled_jacobian_matches_analytic_bounds() {
         let delta = 0.1;
         let (cache, xe) = p2_triangle(delta);
-        let q = element_quality(&cache, &xe);
+        let q = element_quality(&cache, &xe, None);
         // J = 1 + 4δ(ξ+η) ranges over [1, 1 + 4δ], extremes at the vertex
         // (0,0) and on the edge ξ + η = 1, which the lattice samples.
         let expect = 1.0 / (1.0 + 4.0 * delta);
@@ -234,10 +271,7 @@ mod tests {
     fn folded_p2_triangle_is_invalid_and_counted() {
         let (cache, good) = p2_triangle(0.05);
         let (_, bad) = p2_triangle(-0.4);
-        let qs = vec![
-            element_quality(&cache, &good),
-            element_quality(&cache, &bad),
-        ];
+        let qs = vec![element_quality(&cache, &good, None), element_quality(&cache, &bad, None)];
         assert!(qs[1].q3 < 0.0);
         let m = summarize(&qs);
         assert_eq!(m.n_invalid, 1);

@@ -62,11 +62,7 @@ impl LagrangeBasis {
                 vinv[k * n + a] = inv[(k, a)];
             }
         }
-        LagrangeBasis {
-            nodes: nodes.clone(),
-            ortho,
-            vinv,
-        }
+        LagrangeBasis { nodes: nodes.clone(), ortho, vinv }
     }
 
     /// The reference simplex.
@@ -125,13 +121,7 @@ impl LagrangeBasis {
             self.combine_values(&psi, &mut values[q * n..(q + 1) * n]);
             self.combine_grads(&dpsi, &mut grads[q * n * dim..(q + 1) * n * dim]);
         }
-        Tabulation {
-            n_points: points.len(),
-            n_basis: n,
-            dim,
-            values,
-            grads,
-        }
+        Tabulation { n_points: points.len(), n_basis: n, dim, values, grads }
     }
 
     /// out[a] = Σ_k psi[k] (V⁻¹)_{ka}.
@@ -213,10 +203,7 @@ mod tests {
             Poly { terms }
         }
         fn value(&self, x: &[f64; 3]) -> f64 {
-            self.terms
-                .iter()
-                .map(|(e, c)| c * x[0].powi(e[0]) * x[1].powi(e[1]) * x[2].powi(e[2]))
-                .sum()
+            self.terms.iter().map(|(e, c)| c * x[0].powi(e[0]) * x[1].powi(e[1]) * x[2].powi(e[2])).sum()
         }
         fn grad(&self, x: &[f64; 3]) -> [f64; 3] {
             let mut g = [0.0; 3];
@@ -253,12 +240,7 @@ mod tests {
             for q in 0..n {
                 for a in 0..n {
                     let e = if a == q { 1.0 } else { 0.0 };
-                    assert!(
-                        (t.values[q * n + a] - e).abs() < 1e-10,
-                        "{:?} p={}",
-                        b.simplex(),
-                        b.order()
-                    );
+                    assert!((t.values[q * n + a] - e).abs() < 1e-10, "{:?} p={}", b.simplex(), b.order());
                 }
             }
         });
@@ -276,15 +258,8 @@ mod tests {
                 let s: f64 = t.values[q * t.n_basis..(q + 1) * t.n_basis].iter().sum();
                 assert!((s - 1.0).abs() < 1e-11);
                 for i in 0..dim {
-                    let g: f64 = (0..t.n_basis)
-                        .map(|a| t.grads[(q * t.n_basis + a) * dim + i])
-                        .sum();
-                    assert!(
-                        g.abs() < 1e-8,
-                        "{:?} p={} grad sum {g}",
-                        b.simplex(),
-                        b.order()
-                    );
+                    let g: f64 = (0..t.n_basis).map(|a| t.grads[(q * t.n_basis + a) * dim + i]).sum();
+                    assert!(g.abs() < 1e-8, "{:?} p={} grad sum {g}", b.simplex(), b.order());
                 }
             }
         });
@@ -305,16 +280,10 @@ mod tests {
             let n = t.n_basis;
             for (q, x) in pts.iter().enumerate() {
                 let u: f64 = (0..n).map(|a| coef[a] * t.values[q * n + a]).sum();
-                assert!(
-                    (u - poly.value(x)).abs() < 1e-10,
-                    "{simplex:?} p={} value",
-                    b.order()
-                );
+                assert!((u - poly.value(x)).abs() < 1e-10, "{simplex:?} p={} value", b.order());
                 let g = poly.grad(x);
                 for (i, &gi) in g.iter().enumerate().take(dim) {
-                    let gu: f64 = (0..n)
-                        .map(|a| coef[a] * t.grads[(q * n + a) * dim + i])
-                        .sum();
+                    let gu: f64 = (0..n).map(|a| coef[a] * t.grads[(q * n + a) * dim + i]).sum();
                     assert!(
                         (gu - gi).abs() < 1e-8 * (1.0 + gi.abs()),
                         "{simplex:?} p={} at {x:?}: {gu} vs {gi}",
@@ -374,12 +343,7 @@ mod tests {
         let fine = NodeSet::new(b.simplex(), m, NodeSpacing::Equispaced);
         let t = b.tabulate(&fine.coords);
         (0..t.n_points)
-            .map(|q| {
-                t.values[q * t.n_basis..(q + 1) * t.n_basis]
-                    .iter()
-                    .map(|v| v.abs())
-                    .sum::<f64>()
-            })
+            .map(|q| t.values[q * t.n_basis..(q + 1) * t.n_basis].iter().map(|v| v.abs()).sum::<f64>())
             .fold(0.0, f64::max)
     }
 
@@ -389,10 +353,7 @@ mod tests {
             let eq = LagrangeBasis::new(&NodeSet::new(simplex, 8, NodeSpacing::Equispaced));
             let opt = LagrangeBasis::new(&NodeSet::new(simplex, 8, NodeSpacing::Optimal));
             let (le, lo) = (lebesgue_estimate(&eq, m), lebesgue_estimate(&opt, m));
-            assert!(
-                lo < 0.5 * le,
-                "{simplex:?}: optimal {lo} vs equispaced {le}"
-            );
+            assert!(lo < 0.5 * le, "{simplex:?}: optimal {lo} vs equispaced {le}");
         }
     }
 }

@@ -42,23 +42,16 @@ pub struct NodeSet {
 }
 
 /// Optimised blending parameter α of `Nodes2D` for N = 1..15 (5/3 beyond).
-const ALPHA_TRI: [f64; 15] = [
-    0.0, 0.0, 1.4152, 0.1001, 0.2751, 0.9800, 1.0999, 1.2832, 1.3648, 1.4773, 1.4959, 1.5743,
-    1.5770, 1.6223, 1.6258,
-];
+const ALPHA_TRI: [f64; 15] =
+    [0.0, 0.0, 1.4152, 0.1001, 0.2751, 0.9800, 1.0999, 1.2832, 1.3648, 1.4773, 1.4959, 1.5743, 1.5770, 1.6223, 1.6258];
 /// Optimised blending parameter α of `Nodes3D` for N = 1..15 (1 beyond).
-const ALPHA_TET: [f64; 15] = [
-    0.0, 0.0, 0.0, 0.1002, 1.1332, 1.5608, 1.3413, 1.2577, 1.1603, 1.10153, 0.6080, 0.4523, 0.8856,
-    0.8717, 0.9655,
-];
+const ALPHA_TET: [f64; 15] =
+    [0.0, 0.0, 0.0, 0.1002, 1.1332, 1.5608, 1.3413, 1.2577, 1.1603, 1.10153, 0.6080, 0.4523, 0.8856, 0.8717, 0.9655];
 
 /// The blending parameter α of the warp & blend nodes of `simplex` at order `p`.
 pub fn warp_blend_alpha(simplex: Simplex, p: usize) -> f64 {
     match simplex {
-        Simplex::Tri => ALPHA_TRI
-            .get(p.wrapping_sub(1))
-            .copied()
-            .unwrap_or(5.0 / 3.0),
+        Simplex::Tri => ALPHA_TRI.get(p.wrapping_sub(1)).copied().unwrap_or(5.0 / 3.0),
         Simplex::Tet => ALPHA_TET.get(p.wrapping_sub(1)).copied().unwrap_or(1.0),
     }
 }
@@ -85,12 +78,7 @@ impl NodeSet {
     /// It differs from `NodeSet::new(Simplex::Tri, ..)` for the optimal
     /// spacing at p ≥ 3, because `Nodes3D` blends the faces with its own α.
     pub fn tet_face_trace(order: usize, spacing: NodeSpacing) -> NodeSet {
-        Self::build(
-            Simplex::Tri,
-            order,
-            spacing,
-            warp_blend_alpha(Simplex::Tet, order),
-        )
+        Self::build(Simplex::Tri, order, spacing, warp_blend_alpha(Simplex::Tet, order))
     }
 
     fn build(simplex: Simplex, order: usize, spacing: NodeSpacing, face_alpha: f64) -> NodeSet {
@@ -116,12 +104,7 @@ impl NodeSet {
                 x
             })
             .collect();
-        NodeSet {
-            simplex,
-            order,
-            multi,
-            coords,
-        }
+        NodeSet { simplex, order, multi, coords }
     }
 
     /// Number of nodes, (p+1)(p+2)/2 or (p+1)(p+2)(p+3)/6.
@@ -307,8 +290,7 @@ impl WarpBlend {
                     let face: Vec<usize> = (0..4).filter(|&v| v != f).collect();
                     let (la, lb, lc, ld) = (l0[f], l0[face[0]], l0[face[1]], l0[face[2]]);
                     let aa = alpha * la;
-                    let blend = (1.0 + aa * aa) * lb * lc * ld
-                        / ((lb + 0.5 * la) * (lc + 0.5 * la) * (ld + 0.5 * la));
+                    let blend = (1.0 + aa * aa) * lb * lc * ld / ((lb + 0.5 * la) * (lc + 0.5 * la) * (ld + 0.5 * la));
                     let d = self.tri_shift([lb, lc, ld], alpha);
                     for (t, &v) in face.iter().enumerate() {
                         l[v] += blend * d[t];
@@ -407,11 +389,7 @@ mod tests {
                 for g in groups {
                     // C(p − 1, |g| − 1) compositions of p into |g| positive parts
                     let k = g.len();
-                    let count = if p < k {
-                        0
-                    } else {
-                        (1..k).fold(1, |acc, j| acc * (p - j) / j)
-                    };
+                    let count = if p < k { 0 } else { (1..k).fold(1, |acc, j| acc * (p - j) / j) };
                     for m in 0..count {
                         let a = n.multi[i + m];
                         for v in 0..nv {
@@ -433,11 +411,7 @@ mod tests {
                 let n = NodeSet::new(simplex, p, NodeSpacing::Equispaced);
                 for (a, x) in n.multi.iter().zip(&n.coords) {
                     for i in 0..3 {
-                        let e = if i < simplex.dim() {
-                            a[i + 1] as f64 / p as f64
-                        } else {
-                            0.0
-                        };
+                        let e = if i < simplex.dim() { a[i + 1] as f64 / p as f64 } else { 0.0 };
                         assert_eq!(x[i], e);
                     }
                 }
@@ -451,13 +425,8 @@ mod tests {
             let nv = simplex.n_vertices();
             for p in 1..=15 {
                 let n = NodeSet::new(simplex, p, NodeSpacing::Optimal);
-                let warp = WarpBlend::new(
-                    p,
-                    warp_blend_alpha(simplex, p),
-                    warp_blend_alpha(Simplex::Tet, p),
-                );
-                let index: HashMap<[usize; 4], usize> =
-                    n.multi.iter().enumerate().map(|(i, a)| (*a, i)).collect();
+                let warp = WarpBlend::new(p, warp_blend_alpha(simplex, p), warp_blend_alpha(Simplex::Tet, p));
+                let index: HashMap<[usize; 4], usize> = n.multi.iter().enumerate().map(|(i, a)| (*a, i)).collect();
                 for sigma in permutations(nv) {
                     for (i, a) in n.multi.iter().enumerate() {
                         // vertex v of the element becomes vertex sigma[v]
@@ -518,12 +487,7 @@ mod tests {
                 }
                 let min_dist = (0..n.len())
                     .flat_map(|i| (0..i).map(move |j| (i, j)))
-                    .map(|(i, j)| {
-                        (0..3)
-                            .map(|c| (n.coords[i][c] - n.coords[j][c]).powi(2))
-                            .sum::<f64>()
-                            .sqrt()
-                    })
+                    .map(|(i, j)| (0..3).map(|c| (n.coords[i][c] - n.coords[j][c]).powi(2)).sum::<f64>().sqrt())
                     .fold(f64::INFINITY, f64::min);
                 assert!(min_dist > 0.1 / (p * p) as f64, "p={p}: {min_dist}");
             }
@@ -585,11 +549,7 @@ mod hesthaven_reference {
         [a[0] / n, a[1] / n, a[2] / n]
     }
     fn mid(a: V3, b: V3) -> V3 {
-        [
-            0.5 * (a[0] + b[0]),
-            0.5 * (a[1] + b[1]),
-            0.5 * (a[2] + b[2]),
-        ]
+        [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1]), 0.5 * (a[2] + b[2])]
     }
 
     /// `Warpfactor` (2D): interpolant of GLL − equispaced divided by 1 − r².
@@ -616,9 +576,7 @@ mod hesthaven_reference {
     /// `evalwarp` (3D), with the descending point lists of `Nodes3D`.
     fn evalwarp(p: usize, r: f64) -> f64 {
         let xnodes: Vec<f64> = gauss_lobatto_legendre(p + 1).into_iter().rev().collect();
-        let xeq: Vec<f64> = (1..=p + 1)
-            .map(|i| -1.0 + 2.0 * (p + 1 - i) as f64 / p as f64)
-            .collect();
+        let xeq: Vec<f64> = (1..=p + 1).map(|i| -1.0 + 2.0 * (p + 1 - i) as f64 / p as f64).collect();
         let mut warp = 0.0;
         for i in 1..=p + 1 {
             let mut d = xnodes[i - 1] - xeq[i - 1];
@@ -667,12 +625,7 @@ mod hesthaven_reference {
     fn nodes3d(p: usize, a: &[usize; 4], v: &[V3; 4]) -> V3 {
         let alpha = warp_blend_alpha(Simplex::Tet, p);
         let tol = 1e-10;
-        let t1 = [
-            unit(sub(v[1], v[0])),
-            unit(sub(v[1], v[0])),
-            unit(sub(v[2], v[1])),
-            unit(sub(v[2], v[0])),
-        ];
+        let t1 = [unit(sub(v[1], v[0])), unit(sub(v[1], v[0])), unit(sub(v[2], v[1])), unit(sub(v[2], v[0]))];
         let t2 = [
             unit(sub(v[2], mid(v[0], v[1]))),
             unit(sub(v[3], mid(v[0], v[1]))),
@@ -680,12 +633,7 @@ mod hesthaven_reference {
             unit(sub(v[3], mid(v[0], v[2]))),
         ];
         let n = p as f64;
-        let (l3, l4, l2, l1) = (
-            a[0] as f64 / n,
-            a[1] as f64 / n,
-            a[2] as f64 / n,
-            a[3] as f64 / n,
-        );
+        let (l3, l4, l2, l1) = (a[0] as f64 / n, a[1] as f64 / n, a[2] as f64 / n, a[3] as f64 / n);
         let mut shift = [0.0; 3];
         for face in 0..4 {
             let (la, lb, lc, ld) = match face {
@@ -719,11 +667,7 @@ mod hesthaven_reference {
     #[test]
     fn warp_blend_reproduces_hesthaven_nodes2d() {
         let s3 = 3f64.sqrt();
-        let v = [
-            [-1.0, -1.0 / s3, 0.0],
-            [1.0, -1.0 / s3, 0.0],
-            [0.0, 2.0 / s3, 0.0],
-        ];
+        let v = [[-1.0, -1.0 / s3, 0.0], [1.0, -1.0 / s3, 0.0], [0.0, 2.0 / s3, 0.0]];
         for p in 1..=15 {
             let n = NodeSet::new(Simplex::Tri, p, NodeSpacing::Optimal);
             for (i, a) in n.multi.iter().enumerate() {

@@ -93,10 +93,7 @@ pub fn gmsh_element_type(simplex: Simplex, order: usize) -> Option<i32> {
 
 /// gmsh element type of the order-`order` line (1..10): 1, 8, 26, 27, 28, 62..66.
 pub fn gmsh_line_type(order: usize) -> Option<i32> {
-    order
-        .checked_sub(1)
-        .and_then(|i| GMSH_LINE_TYPES.get(i))
-        .copied()
+    order.checked_sub(1).and_then(|i| GMSH_LINE_TYPES.get(i)).copied()
 }
 
 /// The simplex and order of a gmsh complete Lagrange triangle or tetrahedron
@@ -113,10 +110,7 @@ pub fn gmsh_type_info(element_type: i32) -> Option<(Simplex, usize)> {
 
 /// Order of a gmsh line type (1 → 1, 8 → 2, ...); `None` if not a line.
 pub fn gmsh_line_order(element_type: i32) -> Option<usize> {
-    GMSH_LINE_TYPES
-        .iter()
-        .position(|&t| t == element_type)
-        .map(|i| i + 1)
+    GMSH_LINE_TYPES.iter().position(|&t| t == element_type).map(|i| i + 1)
 }
 
 /// `(type, dimension, nodes per element)` of every gmsh element type with a
@@ -238,10 +232,7 @@ const GMSH_SHAPES: [(i32, usize, usize); 110] = [
 /// `(dimension, nodes per element)` of any gmsh element type with a fixed node
 /// count (points, lines, triangles, quads, tets, hexes, prisms, pyramids, ...).
 pub fn gmsh_element_shape(element_type: i32) -> Option<(usize, usize)> {
-    GMSH_SHAPES
-        .iter()
-        .find(|s| s.0 == element_type)
-        .map(|&(_, dim, n)| (dim, n))
+    GMSH_SHAPES.iter().find(|s| s.0 == element_type).map(|&(_, dim, n)| (dim, n))
 }
 
 /// `perm[k]` = index in `from` of the k-th multi-index of `to`, so that
@@ -331,9 +322,7 @@ mod tests {
     fn is_complete(simplex: Simplex, p: usize, list: &[[usize; 4]]) -> bool {
         let d = simplex.dim();
         list.len() == simplex.n_nodes(p)
-            && list
-                .iter()
-                .all(|a| a[..=d].iter().sum::<usize>() == p && a[d + 1..].iter().all(|&x| x == 0))
+            && list.iter().all(|a| a[..=d].iter().sum::<usize>() == p && a[d + 1..].iter().all(|&x| x == 0))
             && permutation(list, list).is_some()
     }
 
@@ -387,10 +376,7 @@ mod tests {
             for p in 1..=10 {
                 let t = gmsh_element_type(simplex, p).unwrap();
                 assert_eq!(gmsh_type_info(t), Some((simplex, p)));
-                assert_eq!(
-                    gmsh_element_shape(t),
-                    Some((simplex.dim(), simplex.n_nodes(p)))
-                );
+                assert_eq!(gmsh_element_shape(t), Some((simplex.dim(), simplex.n_nodes(p))));
             }
             assert_eq!(gmsh_element_type(simplex, 0), None);
             assert_eq!(gmsh_element_type(simplex, 11), None);

@@ -43,19 +43,13 @@ impl From<f64> for Dual {
 impl Add for Dual {
     type Output = Dual;
     fn add(self, o: Dual) -> Dual {
-        Dual {
-            v: self.v + o.v,
-            d: [self.d[0] + o.d[0], self.d[1] + o.d[1], self.d[2] + o.d[2]],
-        }
+        Dual { v: self.v + o.v, d: [self.d[0] + o.d[0], self.d[1] + o.d[1], self.d[2] + o.d[2]] }
     }
 }
 impl Sub for Dual {
     type Output = Dual;
     fn sub(self, o: Dual) -> Dual {
-        Dual {
-            v: self.v - o.v,
-            d: [self.d[0] - o.d[0], self.d[1] - o.d[1], self.d[2] - o.d[2]],
-        }
+        Dual { v: self.v - o.v, d: [self.d[0] - o.d[0], self.d[1] - o.d[1], self.d[2] - o.d[2]] }
     }
 }
 impl Mul for Dual {
@@ -74,21 +68,13 @@ impl Mul for Dual {
 impl Mul<f64> for Dual {
     type Output = Dual;
     fn mul(self, s: f64) -> Dual {
-        Dual {
-            v: self.v * s,
-            d: [self.d[0] * s, self.d[1] * s, self.d[2] * s],
-        }
+        Dual { v: self.v * s, d: [self.d[0] * s, self.d[1] * s, self.d[2] * s] }
     }
 }
 
 /// The arithmetic the recurrences need: plain values (f64) or values with gradients (Dual).
 trait Num:
-    Copy
-    + From<f64>
-    + Add<Output = Self>
-    + Sub<Output = Self>
-    + Mul<Output = Self>
-    + Mul<f64, Output = Self>
+    Copy + From<f64> + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Mul<f64, Output = Self>
 {
 }
 impl Num for f64 {}
@@ -305,10 +291,7 @@ mod tests {
                     for k in 0..n {
                         let fd = (vp[k] - vm[k]) / (2.0 * h);
                         let scale = 1.0 + g[k * dim + i].abs();
-                        assert!(
-                            (fd - g[k * dim + i]).abs() < 1e-6 * scale,
-                            "{simplex:?} k={k}"
-                        );
+                        assert!((fd - g[k * dim + i]).abs() < 1e-6 * scale, "{simplex:?} k={k}");
                     }
                 }
             }

@@ -55,12 +55,7 @@ impl Simplex {
     /// Reference coordinates of the vertices (3 components; z = 0 for the triangle).
     pub fn vertex_coords(self) -> &'static [[f64; 3]] {
         const TRI: [[f64; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
-        const TET: [[f64; 3]; 4] = [
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-            [0.0, 0.0, 1.0],
-        ];
+        const TET: [[f64; 3]; 4] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
         match self {
             Simplex::Tri => &TRI,
             Simplex::Tet => &TET,

@@ -19,22 +19,12 @@ pub struct SparseCholesky {
 impl SparseCholesky {
     /// Analyse the pattern (AMD ordering, elimination tree, supernodes).
     pub fn try_analyse(pattern: &SymmetricCsc) -> Result<SparseCholesky> {
-        let sym = SymbolicSparseColMatRef::new_checked(
-            pattern.n,
-            pattern.n,
-            &pattern.col_ptr,
-            None,
-            &pattern.row_idx,
-        );
-        let symbolic =
-            factorize_symbolic_cholesky(sym, Side::Lower, Default::default(), Default::default())
-                .map_err(|e| Error::Solver(format!("symbolic Cholesky analysis failed: {e:?}")))?;
+        let sym = SymbolicSparseColMatRef::new_checked(pattern.n, pattern.n, &pattern.col_ptr, None, &pattern.row_idx);
+        let symbolic = factorize_symbolic_cholesky(sym, Side::Lower, Default::default(), Default::default())
+            .map_err(|e| Error::Solver(format!("symbolic Cholesky analysis failed: {e:?}")))?;
         // faer 0.24's threaded sparse Cholesky is slower than the sequential one on
         // our matrices (issue 5 measurements), so factor sequentially.
-        Ok(SparseCholesky {
-            symbolic,
-            par: Par::Seq,
-        })
+        Ok(SparseCholesky { symbolic, par: Par::Seq })
     }
 
     /// Number of nonzeros of the factor L.
@@ -44,19 +34,8 @@ impl SparseCholesky {
 
     /// Factor the matrix with these `values` on the analysed pattern and solve
     /// A x = b in place (`rhs` becomes x). Fails if A is not positive definite.
-    pub fn try_factor_solve_in_place(
-        &self,
-        pattern: &SymmetricCsc,
-        values: &[f64],
-        rhs: &mut [f64],
-    ) -> Result<()> {
-        let sym = SymbolicSparseColMatRef::new_checked(
-            pattern.n,
-            pattern.n,
-            &pattern.col_ptr,
-            None,
-            &pattern.row_idx,
-        );
+    pub fn try_factor_solve_in_place(&self, pattern: &SymmetricCsc, values: &[f64], rhs: &mut [f64]) -> Result<()> {
+        let sym = SymbolicSparseColMatRef::new_checked(pattern.n, pattern.n, &pattern.col_ptr, None, &pattern.row_idx);
         let a = SparseColMatRef::new(sym, values);
         let mut l_values = Vec::new();
         l_values
@@ -64,11 +43,8 @@ impl SparseCholesky {
             .map_err(|_| Error::Solver("out of memory for the Cholesky factor".into()))?;
         l_values.resize(self.symbolic.len_val(), 0.0);
         let params: Spec<LltParams, f64> = Default::default();
-        let mut mem = MemBuffer::try_new(
-            self.symbolic
-                .factorize_numeric_llt_scratch::<f64>(self.par, params),
-        )
-        .map_err(|_| Error::Solver("out of memory for the Cholesky workspace".into()))?;
+        let mut mem = MemBuffer::try_new(self.symbolic.factorize_numeric_llt_scratch::<f64>(self.par, params))
+            .map_err(|_| Error::Solver("out of memory for the Cholesky workspace".into()))?;
         let llt = self
             .symbolic
             .factorize_numeric_llt(
@@ -80,14 +56,9 @@ impl SparseCholesky {
                 MemStack::new(&mut mem),
                 params,
             )
-            .map_err(|e| {
-                Error::Solver(format!(
-                    "the stiffness matrix is not positive definite ({e:?})"
-                ))
-            })?;
-        let mut solve_mem =
-            MemBuffer::try_new(self.symbolic.solve_in_place_scratch::<f64>(1, self.par))
-                .map_err(|_| Error::Solver("out of memory for the solve workspace".into()))?;
+            .map_err(|e| Error::Solver(format!("the stiffness matrix is not positive definite ({e:?})")))?;
+        let mut solve_mem = MemBuffer::try_new(self.symbolic.solve_in_place_scratch::<f64>(1, self.par))
+            .map_err(|_| Error::Solver("out of memory for the solve workspace".into()))?;
         let n = rhs.len();
         let rhs_mat = MatMut::from_column_major_slice_mut(rhs, n, 1);
         llt.solve_in_place_with_conj(Conj::No, rhs_mat, self.par, MemStack::new(&mut solve_mem));
@@ -113,14 +84,7 @@ mod tests {
             }
             col_ptr.push(row_idx.len());
         }
-        (
-            SymmetricCsc {
-                n,
-                col_ptr,
-                row_idx,
-            },
-            vals,
-        )
+        (SymmetricCsc { n, col_ptr, row_idx }, vals)
     }
 
     #[test]
@@ -146,9 +110,6 @@ mod tests {
         v[0] = -2.0;
         let chol = SparseCholesky::try_analyse(&a).unwrap();
         let mut b = vec![1.0; 5];
-        assert!(matches!(
-            chol.try_factor_solve_in_place(&a, &v, &mut b),
-            Err(Error::Solver(_))
-        ));
+        assert!(matches!(chol.try_factor_solve_in_place(&a, &v, &mut b), Err(Error::Solver(_))));
     }
 }

@@ -6,8 +6,10 @@
 //! factorisation for every new set of values on the same pattern.
 
 mod cholesky;
+mod lu;
 
 pub use cholesky::SparseCholesky;
+pub use lu::try_lu_solve_in_place;
 
 /// Lower triangle (row ≥ column) of a symmetric `n`×`n` sparse matrix, CSC.
 #[derive(Debug, Clone, Default)]

@@ -25,12 +25,7 @@ pub fn square_mesh(n: usize) -> LinearMesh {
             cells.extend_from_slice(&[v(i, j), v(i + 1, j + 1), v(i, j + 1)]);
         }
     }
-    LinearMesh {
-        dim: 2,
-        coords,
-        cells,
-        ..Default::default()
-    }
+    LinearMesh { dim: 2, coords, cells, ..Default::default() }
 }
 
 /// Unit cube split into 6n³ tetrahedra (Kuhn subdivision), interior vertices jittered.
@@ -39,11 +34,7 @@ pub fn cube_mesh(n: usize) -> LinearMesh {
     for k in 0..=n {
         for j in 0..=n {
             for i in 0..=n {
-                let mut x = [
-                    i as f64 / n as f64,
-                    j as f64 / n as f64,
-                    k as f64 / n as f64,
-                ];
+                let mut x = [i as f64 / n as f64, j as f64 / n as f64, k as f64 / n as f64];
                 if [i, j, k].iter().all(|&t| t > 0 && t < n) {
                     for (d, xd) in x.iter_mut().enumerate() {
                         *xd += 0.1 / n as f64 * ((i * 7 + j * 3 + k * 5 + d * 13) as f64).sin();
@@ -56,14 +47,7 @@ pub fn cube_mesh(n: usize) -> LinearMesh {
     let v = |i: usize, j: usize, k: usize| (k * (n + 1) + j) * (n + 1) + i;
     let mut cells = Vec::new();
     // The six tets of the Kuhn subdivision share the main diagonal 0 → 7.
-    let perms = [
-        [0, 1, 2],
-        [0, 2, 1],
-        [1, 0, 2],
-        [1, 2, 0],
-        [2, 0, 1],
-        [2, 1, 0],
-    ];
+    let perms = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]];
     for k in 0..n {
         for j in 0..n {
             for i in 0..n {
@@ -79,10 +63,5 @@ pub fn cube_mesh(n: usize) -> LinearMesh {
             }
         }
     }
-    LinearMesh {
-        dim: 3,
-        coords,
-        cells,
-        ..Default::default()
-    }
+    LinearMesh { dim: 3, coords, cells, ..Default::default() }
 }
