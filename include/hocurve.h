@@ -439,10 +439,12 @@ HocStatus hoc_mesh_write(const HocMesh *mesh, const char *path);
 
 /**
  * The message of the last failed call on this handle ("" after a success).
- * Valid until the next call on the handle.
+ * With NULL: the message of the last call on this thread that had no handle
+ * (a failed hoc_mesh_create, or a call given a NULL handle). Valid until the
+ * next call on the handle (or, for NULL, the next such call on the thread).
  *
- * @param[in] mesh the handle (NULL gives "")
- * @return a NUL-terminated string owned by the handle
+ * @param[in] mesh the handle, or NULL
+ * @return a NUL-terminated string owned by the handle or the thread
  */
 const char *hoc_mesh_last_error(const HocMesh *mesh);
 

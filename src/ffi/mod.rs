@@ -167,6 +167,11 @@ fn null(what: &str) -> (HocStatus, String) {
     (HOC_ERROR_NULL_POINTER, format!("{what} is NULL"))
 }
 
+thread_local! {
+    /// The message of the last failed call on this thread that had no handle.
+    static THREAD_LAST_ERROR: RefCell<CString> = RefCell::new(CString::default());
+}
+
 /// Run `f` with panics caught; record the message on the handle.
 fn guard(handle: *const HocMesh, f: impl FnOnce() -> FfiResult) -> HocStatus {
     let result = catch_unwind(AssertUnwindSafe(f)).unwrap_or_else(|p| {
@@ -181,10 +186,14 @@ fn guard(handle: *const HocMesh, f: impl FnOnce() -> FfiResult) -> HocStatus {
         Ok(()) => (HOC_OK, String::new()),
         Err(e) => e,
     };
-    if !handle.is_null() {
+    let msg = CString::new(msg.replace('\0', " ")).unwrap_or_default();
+    if handle.is_null() {
+        // No handle (hoc_mesh_create, or a NULL handle): keep it per thread.
+        THREAD_LAST_ERROR.with(|e| *e.borrow_mut() = msg);
+    } else {
         // SAFETY: a non-null handle comes from hoc_mesh_create.
         let h = unsafe { &*handle };
-        *h.last_error.borrow_mut() = CString::new(msg.replace('\0', " ")).unwrap_or_default();
+        *h.last_error.borrow_mut() = msg;
     }
     status
 }
@@ -244,7 +253,7 @@ pub unsafe extern "C" fn hoc_mesh_create(
     out: *mut *mut HocMesh,
 ) -> HocStatus {
     if out.is_null() {
-        return HOC_ERROR_NULL_POINTER;
+        return guard(std::ptr::null(), || Err(null("out")));
     }
     *out = std::ptr::null_mut();
     let mut created = None;
@@ -750,15 +759,17 @@ pub unsafe extern "C" fn hoc_mesh_write(mesh: *const HocMesh, path: *const c_cha
 }
 
 /// The message of the last failed call on this handle ("" after a success).
-/// Valid until the next call on the handle.
+/// With NULL: the message of the last call on this thread that had no handle
+/// (a failed hoc_mesh_create, or a call given a NULL handle). Valid until the
+/// next call on the handle (or, for NULL, the next such call on the thread).
 ///
-/// @param[in] mesh the handle (NULL gives "")
-/// @return a NUL-terminated string owned by the handle
+/// @param[in] mesh the handle, or NULL
+/// @return a NUL-terminated string owned by the handle or the thread
 #[no_mangle]
 pub unsafe extern "C" fn hoc_mesh_last_error(mesh: *const HocMesh) -> *const c_char {
     match mesh.as_ref() {
         Some(h) => h.last_error.borrow().as_ptr(),
-        None => c"".as_ptr(),
+        None => THREAD_LAST_ERROR.with(|e| e.borrow().as_ptr()),
     }
 }
 
