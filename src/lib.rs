@@ -23,3 +23,5 @@ pub mod quality;
 pub mod solver;
 
 pub use curve::{curve, CurveOptions, CurveReport, CurvedMesh, Formulation};
+pub mod ffi;
+pub mod session;

@@ -17,7 +17,7 @@ use std::process::ExitCode;
 use hocurve::cases;
 use hocurve::curve::{curve, CurveOptions, CurvedMesh, Formulation, Progress, Stage};
 use hocurve::geometry::shapes::{Shape, ShapeProjector};
-use hocurve::io::{self, CellMeshView};
+use hocurve::io;
 use hocurve::mapping::ElementCache;
 use hocurve::mesh::LinearMesh;
 use hocurve::quadrature::simplex_rule;
@@ -270,7 +270,7 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
         args.get("output")
             .ok_or_else(|| Error::InvalidInput("curve needs --output OUT.msh|OUT.vtu".into()))?,
     );
-    check_extension(&output)?;
+    io::check_mesh_extension(&output)?;
     if args.get("order").is_none() {
         return Err(Error::InvalidInput("curve needs --order P".into()));
     }
@@ -344,42 +344,9 @@ fn cmd_quality(argv: &[String]) -> Result<()> {
     Ok(())
 }
 
-fn check_extension(path: &Path) -> Result<()> {
-    match path.extension().and_then(|e| e.to_str()) {
-        Some("msh") | Some("vtu") => Ok(()),
-        _ => Err(Error::InvalidInput(format!(
-            "output '{}' must end in .msh or .vtu",
-            path.display()
-        ))),
-    }
-}
-
-/// Write the curved mesh; nodes are moved to equispaced reference positions,
-/// the convention of gmsh and VTK Lagrange cells.
+/// Write the curved mesh with its cell qualities.
 fn write_mesh(path: &Path, curved: &CurvedMesh) -> Result<()> {
-    check_extension(path)?;
-    let m = &curved.mesh;
-    let native = NodeSet::new(m.simplex, m.order, m.spacing);
-    let equi = NodeSet::new(m.simplex, m.order, NodeSpacing::Equispaced);
-    let coords = if m.spacing == NodeSpacing::Equispaced {
-        m.coords.clone()
-    } else {
-        m.coords_at_nodes(&LagrangeBasis::new(&native), &equi)
-    };
-    let view = CellMeshView {
-        simplex: m.simplex,
-        order: m.order,
-        coords: &coords,
-        cells: &m.cells,
-        cell_multi: &equi.multi,
-    };
-    if path.extension().and_then(|e| e.to_str()) == Some("vtu") {
-        let q3: Vec<f64> = curved.cell_quality.iter().map(|q| q.q3).collect();
-        let q1: Vec<f64> = curved.cell_quality.iter().map(|q| q.q1).collect();
-        io::vtk::write_vtu(path, &view, &[], &[("Q3", &q3), ("Q1", &q1)])
-    } else {
-        io::gmsh::write_msh(path, &view)
-    }
+    io::write_mesh(path, &curved.mesh, Some(&curved.cell_quality))
 }
 
 fn write_text_atomic(path: &Path, text: &str) -> Result<()> {

@@ -10,7 +10,10 @@
 //! failed run leaves no half-written file behind.
 
 pub mod gmsh;
+pub mod mesh_file;
 pub mod vtk;
+
+pub use mesh_file::{check_mesh_extension, write_mesh};
 
 use crate::error::{Error, Result};
 use crate::reference::ordering::permutation;

@@ -1,0 +1,834 @@
+//! The C ABI (SPEC section 6): a thin layer over [`Session`].
+//!
+//! Every function checks its pointers, lengths and enum values, converts,
+//! makes one call into the Rust API and maps the error to a status code. No
+//! panic crosses the boundary: each body runs under `catch_unwind` and a panic
+//! becomes `HOC_ERROR_PANIC`. The handle keeps the last error message. The
+//! library never prints.
+//!
+//! Enumerations are plain `int` typedefs with `#define`d values so that an
+//! unknown value from C is reported (`HOC_ERROR_INVALID_ARGUMENT`) instead of
+//! being undefined behaviour.
+
+#![allow(clippy::missing_safety_doc)]
+
+use std::cell::RefCell;
+use std::ffi::{c_char, c_int, c_void, CStr, CString};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::Path;
+
+use crate::curve::{Formulation, Progress, Stage};
+use crate::geometry::Projector;
+use crate::mesh::LinearMesh;
+use crate::reference::NodeSpacing;
+use crate::session::{MaterialModel, NodeOrdering, Session};
+use crate::Error;
+
+/// Status code returned by every function (0 = success).
+pub type HocStatus = c_int;
+/// Success.
+pub const HOC_OK: HocStatus = 0;
+/// A required pointer argument was NULL.
+pub const HOC_ERROR_NULL_POINTER: HocStatus = 1;
+/// An argument is out of range (order, material constants, enum value, ...).
+pub const HOC_ERROR_INVALID_ARGUMENT: HocStatus = 2;
+/// The mesh or its boundary description is malformed.
+pub const HOC_ERROR_INVALID_MESH: HocStatus = 3;
+/// The projector failed, returned a non-finite point or one too far away.
+pub const HOC_ERROR_PROJECTION: HocStatus = 4;
+/// A linear solve failed.
+pub const HOC_ERROR_SOLVER: HocStatus = 5;
+/// An element became inverted during the run.
+pub const HOC_ERROR_INVALID_ELEMENT: HocStatus = 6;
+/// A file could not be written.
+pub const HOC_ERROR_IO: HocStatus = 7;
+/// The progress callback asked to stop.
+pub const HOC_ERROR_CANCELLED: HocStatus = 8;
+/// An output buffer has the wrong length.
+pub const HOC_ERROR_BUFFER_SIZE: HocStatus = 9;
+/// An internal error (a bug in hocurve); the handle is still usable.
+pub const HOC_ERROR_PANIC: HocStatus = 10;
+
+/// Placement of the high-order nodes in the reference element.
+pub type HocNodeSpacing = c_int;
+/// Warburton's warp & blend nodes (Gauss–Lobatto on edges). The default.
+pub const HOC_SPACING_OPTIMAL: HocNodeSpacing = 0;
+/// Equispaced nodes (the convention of gmsh and VTK files).
+pub const HOC_SPACING_EQUISPACED: HocNodeSpacing = 1;
+
+/// Constitutive model of the mesh-as-a-solid.
+pub type HocMaterial = c_int;
+/// Isotropic linear elasticity.
+pub const HOC_MATERIAL_LINEAR_ELASTIC: HocMaterial = 0;
+/// Compressible neo-Hookean (not available yet).
+pub const HOC_MATERIAL_NEO_HOOKEAN: HocMaterial = 1;
+/// Compressible Mooney–Rivlin (not available yet).
+pub const HOC_MATERIAL_MOONEY_RIVLIN: HocMaterial = 2;
+/// Nearly incompressible Mooney–Rivlin (not available yet).
+pub const HOC_MATERIAL_NI_MOONEY_RIVLIN: HocMaterial = 3;
+/// Transversely isotropic hyperelastic (not available yet).
+pub const HOC_MATERIAL_TRANSVERSELY_ISOTROPIC: HocMaterial = 4;
+/// Transversely isotropic linear elastic (not available yet).
+pub const HOC_MATERIAL_TRANSVERSELY_ISOTROPIC_LINEAR: HocMaterial = 5;
+
+/// Solid-mechanics formulation (paper Table 1).
+pub type HocFormulation = c_int;
+/// Classical linear elasticity, one solve.
+pub const HOC_FORMULATION_LINEAR: HocFormulation = 0;
+/// Incremental linear elasticity on the updated geometry. The default.
+pub const HOC_FORMULATION_ILE: HocFormulation = 1;
+/// Inconsistent incrementally linearised (not available yet).
+pub const HOC_FORMULATION_IIL: HocFormulation = 2;
+/// Consistent incrementally linearised (not available yet).
+pub const HOC_FORMULATION_CIL: HocFormulation = 3;
+/// Newton–Raphson on the hyperelastic problem (not available yet).
+pub const HOC_FORMULATION_NONLINEAR: HocFormulation = 4;
+
+/// Local node order of the returned connectivity.
+pub type HocNodeOrdering = c_int;
+/// hocurve's own: vertices, edge nodes, face nodes, interior nodes.
+pub const HOC_ORDERING_NATIVE: HocNodeOrdering = 0;
+/// gmsh's element node order.
+pub const HOC_ORDERING_GMSH: HocNodeOrdering = 1;
+/// VTK Lagrange cell node order.
+pub const HOC_ORDERING_VTK: HocNodeOrdering = 2;
+
+/// Mesh quality (paper section 5): minima over the cells, mean Q3, and the
+/// number of cells with a non-positive Jacobian at a sample point.
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct HocQuality {
+    pub min_q1: f64,
+    pub min_q2: f64,
+    pub min_q3: f64,
+    /// NaN unless the material is transversely isotropic.
+    pub min_q4: f64,
+    /// NaN unless the material is transversely isotropic.
+    pub min_q5: f64,
+    pub mean_q3: f64,
+    pub n_invalid: usize,
+    pub n_cells: usize,
+}
+
+/// Projects `n_points` points (`dim` interleaved coordinates each, `dim` the
+/// mesh dimension) onto the geometric entity (`entity_dim`, `entity_tag`),
+/// writing the closest points into `projected`. Returns 0 on success. It is
+/// called from one thread at a time, possibly a worker thread of hocurve.
+pub type HocProjectFn = Option<
+    unsafe extern "C" fn(
+        user_data: *mut c_void,
+        entity_dim: c_int,
+        entity_tag: c_int,
+        n_points: usize,
+        points: *const f64,
+        projected: *mut f64,
+    ) -> c_int,
+>;
+
+/// Progress of a run: `stage` 0 elevate, 1 project, 2 increment, 3 quality;
+/// `step` of `total`. Return 0 to continue, nonzero to cancel the run.
+pub type HocProgressFn = Option<
+    unsafe extern "C" fn(user_data: *mut c_void, stage: c_int, step: c_int, total: c_int) -> c_int,
+>;
+
+/// Opaque handle: one mesh being curved.
+pub struct HocMesh {
+    session: Session,
+    last_error: RefCell<CString>,
+}
+
+type FfiResult = std::result::Result<(), (HocStatus, String)>;
+
+fn status_of(e: &Error, mesh_context: bool) -> HocStatus {
+    match e {
+        Error::InvalidInput(_) if mesh_context => HOC_ERROR_INVALID_MESH,
+        Error::InvalidInput(_) => HOC_ERROR_INVALID_ARGUMENT,
+        Error::Projection(_) => HOC_ERROR_PROJECTION,
+        Error::Solver(_) => HOC_ERROR_SOLVER,
+        Error::InvalidElement(_) => HOC_ERROR_INVALID_ELEMENT,
+        Error::Io(_) => HOC_ERROR_IO,
+        Error::Cancelled => HOC_ERROR_CANCELLED,
+    }
+}
+
+fn err(e: Error) -> (HocStatus, String) {
+    (status_of(&e, false), e.to_string())
+}
+
+fn mesh_err(e: Error) -> (HocStatus, String) {
+    (status_of(&e, true), e.to_string())
+}
+
+fn arg(msg: impl Into<String>) -> (HocStatus, String) {
+    (HOC_ERROR_INVALID_ARGUMENT, msg.into())
+}
+
+fn null(what: &str) -> (HocStatus, String) {
+    (HOC_ERROR_NULL_POINTER, format!("{what} is NULL"))
+}
+
+/// Run `f` with panics caught; record the message on the handle.
+fn guard(handle: *const HocMesh, f: impl FnOnce() -> FfiResult) -> HocStatus {
+    let result = catch_unwind(AssertUnwindSafe(f)).unwrap_or_else(|p| {
+        let msg = p
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| p.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "unknown panic".into());
+        Err((
+            HOC_ERROR_PANIC,
+            format!("internal error (please report): {msg}"),
+        ))
+    });
+    let (status, msg) = match result {
+        Ok(()) => (HOC_OK, String::new()),
+        Err(e) => e,
+    };
+    if !handle.is_null() {
+        // SAFETY: a non-null handle comes from hoc_mesh_create.
+        let h = unsafe { &*handle };
+        *h.last_error.borrow_mut() = CString::new(msg.replace('\0', " ")).unwrap_or_default();
+    }
+    status
+}
+
+/// Borrow a slice from C, checking the pointer (NULL is fine when len = 0).
+unsafe fn slice<'a, T>(
+    ptr: *const T,
+    len: usize,
+    what: &str,
+) -> std::result::Result<&'a [T], (HocStatus, String)> {
+    if len == 0 {
+        return Ok(&[]);
+    }
+    if ptr.is_null() {
+        return Err(null(what));
+    }
+    if len > isize::MAX as usize / std::mem::size_of::<T>().max(1) {
+        return Err(arg(format!("{what}: length {len} is too large")));
+    }
+    Ok(std::slice::from_raw_parts(ptr, len))
+}
+
+fn indices(v: &[i64], what: &str) -> std::result::Result<Vec<usize>, (HocStatus, String)> {
+    v.iter()
+        .enumerate()
+        .map(|(k, &i)| {
+            usize::try_from(i).map_err(|_| {
+                (
+                    HOC_ERROR_INVALID_MESH,
+                    format!("{what}[{k}] = {i} is negative"),
+                )
+            })
+        })
+        .collect()
+}
+
+fn checked_mul(a: usize, b: usize, what: &str) -> std::result::Result<usize, (HocStatus, String)> {
+    a.checked_mul(b)
+        .ok_or_else(|| arg(format!("{what}: size overflows")))
+}
+
+unsafe fn handle_mut<'a>(
+    mesh: *mut HocMesh,
+) -> std::result::Result<&'a mut HocMesh, (HocStatus, String)> {
+    mesh.as_mut().ok_or_else(|| null("mesh"))
+}
+
+unsafe fn handle<'a>(
+    mesh: *const HocMesh,
+) -> std::result::Result<&'a HocMesh, (HocStatus, String)> {
+    mesh.as_ref().ok_or_else(|| null("mesh"))
+}
+
+/// Create a mesh handle from a linear triangle (`dim` = 2) or tetrahedral
+/// (`dim` = 3) mesh. Cells with negative orientation are reoriented.
+///
+/// @param[in] dim 2 or 3
+/// @param[in] n_vertices number of vertices
+/// @param[in] coords `n_vertices * dim` interleaved coordinates
+/// @param[in] n_cells number of cells (at least 1)
+/// @param[in] cells `n_cells * (dim + 1)` 0-based vertex indices
+/// @param[out] out the new handle (set to NULL on failure)
+/// @return HOC_OK, HOC_ERROR_NULL_POINTER, HOC_ERROR_INVALID_ARGUMENT or HOC_ERROR_INVALID_MESH
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_create(
+    dim: c_int,
+    n_vertices: usize,
+    coords: *const f64,
+    n_cells: usize,
+    cells: *const i64,
+    out: *mut *mut HocMesh,
+) -> HocStatus {
+    if out.is_null() {
+        return HOC_ERROR_NULL_POINTER;
+    }
+    *out = std::ptr::null_mut();
+    let mut created = None;
+    let status = guard(std::ptr::null(), || {
+        if dim != 2 && dim != 3 {
+            return Err(arg(format!("dim must be 2 or 3, got {dim}")));
+        }
+        let d = dim as usize;
+        if n_cells == 0 {
+            return Err((HOC_ERROR_INVALID_MESH, "the mesh has no cells".into()));
+        }
+        let coords = slice(coords, checked_mul(n_vertices, d, "coords")?, "coords")?.to_vec();
+        let cells = indices(
+            slice(cells, checked_mul(n_cells, d + 1, "cells")?, "cells")?,
+            "cells",
+        )?;
+        let linear = LinearMesh {
+            dim: d,
+            coords,
+            cells,
+            ..Default::default()
+        };
+        let session = Session::try_new(linear).map_err(mesh_err)?;
+        created = Some(Box::new(HocMesh {
+            session,
+            last_error: RefCell::new(CString::default()),
+        }));
+        Ok(())
+    });
+    if let Some(h) = created {
+        *out = Box::into_raw(h);
+    }
+    status
+}
+
+/// Destroy a handle and set `*mesh` to NULL. NULL and `*mesh == NULL` are fine.
+///
+/// @param[in,out] mesh address of the handle
+/// @return HOC_OK
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_destroy(mesh: *mut *mut HocMesh) -> HocStatus {
+    if mesh.is_null() || (*mesh).is_null() {
+        return HOC_OK;
+    }
+    let h = std::mem::replace(&mut *mesh, std::ptr::null_mut());
+    // Dropping cannot panic in our types, but never let it unwind into C.
+    let _ = catch_unwind(AssertUnwindSafe(|| drop(Box::from_raw(h))));
+    HOC_OK
+}
+
+/// Tag boundary facets (edges in 2D, triangles in 3D) with geometric entity
+/// tags; replaces earlier tags. Untagged boundary stays straight.
+///
+/// @param[in,out] mesh the handle
+/// @param[in] n_facets number of facets
+/// @param[in] facets `n_facets * dim` vertex indices
+/// @param[in] entity_tags `n_facets` tags
+/// @return HOC_OK, or HOC_ERROR_INVALID_MESH if a facet is not on the boundary or is tagged twice
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_set_boundary(
+    mesh: *mut HocMesh,
+    n_facets: usize,
+    facets: *const i64,
+    entity_tags: *const i32,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle_mut(mesh)?;
+        let d = h.session.dim();
+        let f = indices(
+            slice(facets, checked_mul(n_facets, d, "facets")?, "facets")?,
+            "facets",
+        )?;
+        let t = slice(entity_tags, n_facets, "entity_tags")?.to_vec();
+        h.session.set_boundary(f, t).map_err(mesh_err)
+    })
+}
+
+/// Tag 3D feature edges (where two CAD surfaces meet) with curve tags;
+/// their high-order nodes are projected onto the curve.
+///
+/// @param[in,out] mesh the handle
+/// @param[in] n_edges number of edges
+/// @param[in] edges `2 * n_edges` vertex indices
+/// @param[in] curve_tags `n_edges` tags
+/// @return HOC_OK, or HOC_ERROR_INVALID_MESH if an edge is not on the boundary
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_set_feature_edges(
+    mesh: *mut HocMesh,
+    n_edges: usize,
+    edges: *const i64,
+    curve_tags: *const i32,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle_mut(mesh)?;
+        let e = indices(
+            slice(edges, checked_mul(n_edges, 2, "edges")?, "edges")?,
+            "edges",
+        )?;
+        let t = slice(curve_tags, n_edges, "curve_tags")?.to_vec();
+        h.session.set_feature_edges(e, t).map_err(mesh_err)
+    })
+}
+
+/// Adapts a C projection callback to [`Projector`].
+struct CProjector {
+    f: unsafe extern "C" fn(*mut c_void, c_int, c_int, usize, *const f64, *mut f64) -> c_int,
+    user_data: *mut c_void,
+    dim: usize,
+}
+
+// SAFETY: hocurve calls the projector from one thread at a time (documented
+// in the header); the host owns what `user_data` points to.
+unsafe impl Send for CProjector {}
+unsafe impl Sync for CProjector {}
+
+impl Projector for CProjector {
+    fn project(
+        &self,
+        entity_dim: usize,
+        tag: i32,
+        points: &[[f64; 3]],
+        out: &mut [[f64; 3]],
+    ) -> std::result::Result<(), String> {
+        let d = self.dim;
+        let flat: Vec<f64> = points.iter().flat_map(|p| p[..d].to_vec()).collect();
+        let mut proj = vec![f64::NAN; flat.len()];
+        // SAFETY: both buffers hold points.len() * dim doubles.
+        let rc = unsafe {
+            (self.f)(
+                self.user_data,
+                entity_dim as c_int,
+                tag,
+                points.len(),
+                flat.as_ptr(),
+                proj.as_mut_ptr(),
+            )
+        };
+        if rc != 0 {
+            return Err(format!("the projection callback returned {rc}"));
+        }
+        for (o, p) in out.iter_mut().zip(proj.chunks_exact(d)) {
+            *o = [0.0; 3];
+            o[..d].copy_from_slice(p);
+        }
+        Ok(())
+    }
+}
+
+/// Set the projection callback (NULL removes it).
+///
+/// @param[in,out] mesh the handle
+/// @param[in] callback the callback
+/// @param[in] user_data passed back to every call
+/// @return HOC_OK or HOC_ERROR_NULL_POINTER
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_set_projector(
+    mesh: *mut HocMesh,
+    callback: HocProjectFn,
+    user_data: *mut c_void,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle_mut(mesh)?;
+        let dim = h.session.dim();
+        h.session.set_projector(
+            callback
+                .map(|f| Box::new(CProjector { f, user_data, dim }) as Box<dyn Projector + Send>),
+        );
+        Ok(())
+    })
+}
+
+struct SendPtr(*mut c_void);
+// SAFETY: the progress callback is called from one thread at a time.
+unsafe impl Send for SendPtr {}
+
+/// Set a progress callback, called at each stage and load increment; it may
+/// cancel the run (NULL removes it).
+///
+/// @param[in,out] mesh the handle
+/// @param[in] callback the callback; returns 0 to continue
+/// @param[in] user_data passed back to every call
+/// @return HOC_OK or HOC_ERROR_NULL_POINTER
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_set_progress(
+    mesh: *mut HocMesh,
+    callback: HocProgressFn,
+    user_data: *mut c_void,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle_mut(mesh)?;
+        let ud = SendPtr(user_data);
+        h.session.set_progress(callback.map(|f| {
+            Box::new(move |p: &Progress| {
+                let stage = match p.stage {
+                    Stage::Elevate => 0,
+                    Stage::Project => 1,
+                    Stage::Increment => 2,
+                    Stage::Quality => 3,
+                };
+                let ud = &ud;
+                // SAFETY: host-provided callback with its own user data.
+                unsafe { f(ud.0, stage, p.step as c_int, p.total as c_int) == 0 }
+            }) as crate::session::ProgressFn
+        }));
+        Ok(())
+    })
+}
+
+/// Number of worker threads of this handle's own pool (0 = one per core).
+///
+/// @param[in,out] mesh the handle
+/// @param[in] n_threads ≥ 0
+/// @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_set_threads(mesh: *mut HocMesh, n_threads: c_int) -> HocStatus {
+    guard(mesh, || {
+        let h = handle_mut(mesh)?;
+        let n = usize::try_from(n_threads)
+            .map_err(|_| arg(format!("n_threads must be >= 0, got {n_threads}")))?;
+        h.session.set_threads(n);
+        Ok(())
+    })
+}
+
+/// Polynomial order (1..10) and node spacing. Discards a curved result.
+///
+/// @param[in,out] mesh the handle
+/// @param[in] order 1 to 10
+/// @param[in] spacing HOC_SPACING_OPTIMAL or HOC_SPACING_EQUISPACED
+/// @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_set_order(
+    mesh: *mut HocMesh,
+    order: c_int,
+    spacing: HocNodeSpacing,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle_mut(mesh)?;
+        let spacing = match spacing {
+            HOC_SPACING_OPTIMAL => NodeSpacing::Optimal,
+            HOC_SPACING_EQUISPACED => NodeSpacing::Equispaced,
+            s => return Err(arg(format!("unknown node spacing {s}"))),
+        };
+        let order = usize::try_from(order)
+            .map_err(|_| arg(format!("order must be between 1 and 10, got {order}")))?;
+        h.session.set_order(order, spacing).map_err(err)
+    })
+}
+
+/// Material model and constants: Young's modulus E > 0, Poisson's ratio
+/// 0 ≤ ν < 0.5.
+///
+/// @param[in,out] mesh the handle
+/// @param[in] model a HOC_MATERIAL_* value
+/// @param[in] young E
+/// @param[in] poisson ν
+/// @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_set_material(
+    mesh: *mut HocMesh,
+    model: HocMaterial,
+    young: f64,
+    poisson: f64,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle_mut(mesh)?;
+        let model = match model {
+            HOC_MATERIAL_LINEAR_ELASTIC => MaterialModel::LinearElastic,
+            HOC_MATERIAL_NEO_HOOKEAN..=HOC_MATERIAL_TRANSVERSELY_ISOTROPIC_LINEAR => {
+                return Err(arg(format!(
+                    "material {model} is not implemented yet (use HOC_MATERIAL_LINEAR_ELASTIC)"
+                )))
+            }
+            m => return Err(arg(format!("unknown material {m}"))),
+        };
+        h.session.set_material(model, young, poisson).map_err(err)
+    })
+}
+
+/// Solid-mechanics formulation.
+///
+/// @param[in,out] mesh the handle
+/// @param[in] formulation a HOC_FORMULATION_* value
+/// @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_set_formulation(
+    mesh: *mut HocMesh,
+    formulation: HocFormulation,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle_mut(mesh)?;
+        let f = match formulation {
+            HOC_FORMULATION_LINEAR => Formulation::Linear,
+            HOC_FORMULATION_ILE => Formulation::Ile,
+            HOC_FORMULATION_IIL..=HOC_FORMULATION_NONLINEAR => {
+                return Err(arg(format!(
+                    "formulation {formulation} is not implemented yet (use LINEAR or ILE)"
+                )))
+            }
+            f => return Err(arg(format!("unknown formulation {f}"))),
+        };
+        h.session.set_formulation(f);
+        Ok(())
+    })
+}
+
+/// Curve the mesh: project the tagged boundary and solve in `increments`
+/// load increments. On failure the mesh is exactly as before the call.
+///
+/// @param[in,out] mesh the handle
+/// @param[in] increments ≥ 1
+/// @return HOC_OK or the failure's status; see hoc_mesh_last_error
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_run_increments(
+    mesh: *mut HocMesh,
+    increments: c_int,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle_mut(mesh)?;
+        let n = usize::try_from(increments)
+            .ok()
+            .filter(|&n| n >= 1)
+            .ok_or_else(|| arg(format!("increments must be >= 1, got {increments}")))?;
+        h.session.run(n).map_err(err)
+    })
+}
+
+/// Quality of the current mesh.
+///
+/// @param[in] mesh the handle
+/// @param[out] out the figures
+/// @return HOC_OK or HOC_ERROR_NULL_POINTER
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_quality(mesh: *const HocMesh, out: *mut HocQuality) -> HocStatus {
+    guard(mesh, || {
+        let h = handle(mesh)?;
+        let out = out.as_mut().ok_or_else(|| null("out"))?;
+        let q = h.session.quality();
+        *out = HocQuality {
+            min_q1: q.min_q1,
+            min_q2: q.min_q2,
+            min_q3: q.min_q3,
+            min_q4: f64::NAN,
+            min_q5: f64::NAN,
+            mean_q3: q.mean_q3,
+            n_invalid: q.n_invalid,
+            n_cells: h.session.mesh().n_cells(),
+        };
+        Ok(())
+    })
+}
+
+/// Per-cell quality Q`measure` (1, 2 or 3).
+///
+/// @param[in] mesh the handle
+/// @param[in] measure 1, 2 or 3
+/// @param[in] n number of cells (the length of `out`)
+/// @param[out] out one value per cell
+/// @return HOC_OK, HOC_ERROR_INVALID_ARGUMENT or HOC_ERROR_BUFFER_SIZE
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_cell_quality(
+    mesh: *const HocMesh,
+    measure: c_int,
+    n: usize,
+    out: *mut f64,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle(mesh)?;
+        let cq = h.session.cell_quality();
+        if n != cq.len() {
+            return Err((
+                HOC_ERROR_BUFFER_SIZE,
+                format!("n = {n}, but the mesh has {} cells", cq.len()),
+            ));
+        }
+        if out.is_null() {
+            return Err(null("out"));
+        }
+        let get: fn(&crate::quality::ElementQuality) -> f64 = match measure {
+            1 => |q| q.q1,
+            2 => |q| q.q2,
+            3 => |q| q.q3,
+            m => return Err(arg(format!("quality measure must be 1, 2 or 3, got {m}"))),
+        };
+        let out = std::slice::from_raw_parts_mut(out, n);
+        for (o, q) in out.iter_mut().zip(cq) {
+            *o = get(q);
+        }
+        Ok(())
+    })
+}
+
+/// Number of nodes of the current (order-p) mesh.
+///
+/// @param[in] mesh the handle
+/// @param[out] n_nodes the count
+/// @return HOC_OK or HOC_ERROR_NULL_POINTER
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_node_count(
+    mesh: *const HocMesh,
+    n_nodes: *mut usize,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle(mesh)?;
+        *n_nodes.as_mut().ok_or_else(|| null("n_nodes"))? = h.session.mesh().n_nodes();
+        Ok(())
+    })
+}
+
+/// Number of cells and nodes per cell of the current mesh.
+///
+/// @param[in] mesh the handle
+/// @param[out] n_cells the cell count
+/// @param[out] nodes_per_cell (p+1)(p+2)/2 or (p+1)(p+2)(p+3)/6
+/// @return HOC_OK or HOC_ERROR_NULL_POINTER
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_cell_count(
+    mesh: *const HocMesh,
+    n_cells: *mut usize,
+    nodes_per_cell: *mut usize,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle(mesh)?;
+        let m = h.session.mesh();
+        *n_cells.as_mut().ok_or_else(|| null("n_cells"))? = m.n_cells();
+        *nodes_per_cell
+            .as_mut()
+            .ok_or_else(|| null("nodes_per_cell"))? = m.nodes_per_cell();
+        Ok(())
+    })
+}
+
+/// Node coordinates of the current mesh (`n_nodes * dim` doubles). Nodes
+/// `0..n_vertices-1` are the input vertices.
+///
+/// @param[in] mesh the handle
+/// @param[in] n_nodes must equal hoc_mesh_node_count
+/// @param[out] coords `n_nodes * dim` doubles
+/// @return HOC_OK, HOC_ERROR_NULL_POINTER or HOC_ERROR_BUFFER_SIZE
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_get_nodes(
+    mesh: *const HocMesh,
+    n_nodes: usize,
+    coords: *mut f64,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle(mesh)?;
+        let m = h.session.mesh();
+        if n_nodes != m.n_nodes() {
+            return Err((
+                HOC_ERROR_BUFFER_SIZE,
+                format!("n_nodes = {n_nodes}, but the mesh has {}", m.n_nodes()),
+            ));
+        }
+        if coords.is_null() {
+            return Err(null("coords"));
+        }
+        std::slice::from_raw_parts_mut(coords, m.coords.len()).copy_from_slice(&m.coords);
+        Ok(())
+    })
+}
+
+/// Cell connectivity of the current mesh in the requested node ordering.
+///
+/// @param[in] mesh the handle
+/// @param[in] ordering HOC_ORDERING_NATIVE, _GMSH or _VTK
+/// @param[in] len must equal n_cells * nodes_per_cell
+/// @param[out] cells 0-based node indices
+/// @return HOC_OK, HOC_ERROR_INVALID_ARGUMENT or HOC_ERROR_BUFFER_SIZE
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_get_cells(
+    mesh: *const HocMesh,
+    ordering: HocNodeOrdering,
+    len: usize,
+    cells: *mut i64,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle(mesh)?;
+        let ordering = match ordering {
+            HOC_ORDERING_NATIVE => NodeOrdering::Native,
+            HOC_ORDERING_GMSH => NodeOrdering::Gmsh,
+            HOC_ORDERING_VTK => NodeOrdering::Vtk,
+            o => return Err(arg(format!("unknown node ordering {o}"))),
+        };
+        let m = h.session.mesh();
+        if len != m.cells.len() {
+            return Err((
+                HOC_ERROR_BUFFER_SIZE,
+                format!("len = {len}, but the connectivity has {}", m.cells.len()),
+            ));
+        }
+        if cells.is_null() {
+            return Err(null("cells"));
+        }
+        let out = std::slice::from_raw_parts_mut(cells, len);
+        for (o, c) in out.iter_mut().zip(h.session.cells(ordering)) {
+            *o = c as i64;
+        }
+        Ok(())
+    })
+}
+
+/// Write the current mesh: `.msh` (gmsh 4.1) or `.vtu` (VTK Lagrange cells),
+/// chosen by the extension. The file appears whole or not at all.
+///
+/// @param[in] mesh the handle
+/// @param[in] path a NUL-terminated UTF-8 path
+/// @return HOC_OK, HOC_ERROR_INVALID_ARGUMENT or HOC_ERROR_IO
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_write(mesh: *const HocMesh, path: *const c_char) -> HocStatus {
+    guard(mesh, || {
+        let h = handle(mesh)?;
+        if path.is_null() {
+            return Err(null("path"));
+        }
+        let p = CStr::from_ptr(path)
+            .to_str()
+            .map_err(|_| arg("path is not valid UTF-8"))?;
+        crate::io::write_mesh(
+            Path::new(p),
+            h.session.mesh(),
+            Some(h.session.cell_quality()),
+        )
+        .map_err(err)
+    })
+}
+
+/// The message of the last failed call on this handle ("" after a success).
+/// Valid until the next call on the handle.
+///
+/// @param[in] mesh the handle (NULL gives "")
+/// @return a NUL-terminated string owned by the handle
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_last_error(mesh: *const HocMesh) -> *const c_char {
+    match mesh.as_ref() {
+        Some(h) => h.last_error.borrow().as_ptr(),
+        None => c"".as_ptr(),
+    }
+}
+
+/// A static description of a status code.
+///
+/// @param[in] status a HocStatus
+/// @return a NUL-terminated static string
+#[no_mangle]
+pub extern "C" fn hoc_status_string(status: HocStatus) -> *const c_char {
+    let s: &'static CStr = match status {
+        HOC_OK => c"success",
+        HOC_ERROR_NULL_POINTER => c"a required pointer is NULL",
+        HOC_ERROR_INVALID_ARGUMENT => c"invalid argument",
+        HOC_ERROR_INVALID_MESH => c"invalid mesh",
+        HOC_ERROR_PROJECTION => c"projection failed",
+        HOC_ERROR_SOLVER => c"linear solver failed",
+        HOC_ERROR_INVALID_ELEMENT => c"an element became inverted",
+        HOC_ERROR_IO => c"file input/output failed",
+        HOC_ERROR_CANCELLED => c"cancelled by the progress callback",
+        HOC_ERROR_BUFFER_SIZE => c"buffer has the wrong size",
+        HOC_ERROR_PANIC => c"internal error",
+        _ => c"unknown status",
+    };
+    s.as_ptr()
+}
+
+/// The library version, e.g. "0.1.0".
+///
+/// @return a NUL-terminated static string
+#[no_mangle]
+pub extern "C" fn hoc_version() -> *const c_char {
+    concat!(env!("CARGO_PKG_VERSION"), "\0").as_ptr() as *const c_char
+}

@@ -1,0 +1,62 @@
+//! Write a [`HighOrderMesh`] as gmsh `.msh` or VTK `.vtu`, chosen by extension.
+
+use std::path::Path;
+
+use super::CellMeshView;
+use crate::mesh::HighOrderMesh;
+use crate::quality::ElementQuality;
+use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
+use crate::{Error, Result};
+
+/// Check that `path` ends in `.msh` or `.vtu`.
+pub fn check_mesh_extension(path: &Path) -> Result<()> {
+    match path.extension().and_then(|e| e.to_str()) {
+        Some("msh") | Some("vtu") => Ok(()),
+        _ => Err(Error::InvalidInput(format!(
+            "output '{}' must end in .msh or .vtu",
+            path.display()
+        ))),
+    }
+}
+
+/// Write `mesh` to `path` (`.msh`: gmsh MSH 4.1; `.vtu`: VTK Lagrange cells,
+/// with Q1 and Q3 as cell data when `cell_quality` is given).
+///
+/// Both formats interpolate at equispaced reference nodes, so a mesh with
+/// optimal nodes is resampled there first (exact: same polynomial space).
+pub fn write_mesh(
+    path: &Path,
+    mesh: &HighOrderMesh,
+    cell_quality: Option<&[ElementQuality]>,
+) -> Result<()> {
+    check_mesh_extension(path)?;
+    let equi = NodeSet::new(mesh.simplex, mesh.order, NodeSpacing::Equispaced);
+    let coords = if mesh.spacing == NodeSpacing::Equispaced {
+        mesh.coords.clone()
+    } else {
+        let native = NodeSet::new(mesh.simplex, mesh.order, mesh.spacing);
+        mesh.coords_at_nodes(&LagrangeBasis::new(&native), &equi)
+    };
+    let view = CellMeshView {
+        simplex: mesh.simplex,
+        order: mesh.order,
+        coords: &coords,
+        cells: &mesh.cells,
+        cell_multi: &equi.multi,
+    };
+    if path.extension().and_then(|e| e.to_str()) == Some("vtu") {
+        let (q1, q3): (Vec<f64>, Vec<f64>) = cell_quality
+            .unwrap_or(&[])
+            .iter()
+            .map(|q| (q.q1, q.q3))
+            .unzip();
+        let cell_data: Vec<(&str, &[f64])> = if q3.is_empty() {
+            vec![]
+        } else {
+            vec![("Q3", &q3[..]), ("Q1", &q1[..])]
+        };
+        super::vtk::write_vtu(path, &view, &[], &cell_data)
+    } else {
+        super::gmsh::write_msh(path, &view)
+    }
+}

@@ -1,0 +1,270 @@
+//! A stateful curving session: the Rust object behind the C ABI handle.
+//!
+//! It owns the validated linear mesh, the settings, the projector and the
+//! current high-order mesh. Every setter validates its input and leaves the
+//! session unchanged on error; [`Session::run`] replaces the current mesh only
+//! when the whole run succeeds, so a failed run leaves nothing half-curved.
+//!
+//! Before any run (and after changing the order or the boundary) the current
+//! mesh is the straight-sided mesh at the current order.
+
+use crate::curve::{curve, validate_options, CurveOptions, CurveReport, Formulation, Progress};
+use crate::geometry::Projector;
+use crate::mesh::{validate_and_orient, HighOrderMesh, LinearMesh, Topology};
+use crate::quality::{self, ElementQuality, MeshQuality};
+use crate::reference::{ordering, NodeSet, NodeSpacing};
+use crate::{Error, Result};
+
+/// Progress callback: return `false` to cancel.
+pub type ProgressFn = Box<dyn FnMut(&Progress) -> bool + Send>;
+
+/// Node orderings the connectivity can be returned in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NodeOrdering {
+    /// hocurve's own: vertices, edges, faces, interior (see `reference::nodes`).
+    Native,
+    /// gmsh's MSH element node order.
+    Gmsh,
+    /// VTK Lagrange cell node order.
+    Vtk,
+}
+
+/// Material models. Only the linear elastic one is available yet.
+#[non_exhaustive]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MaterialModel {
+    LinearElastic,
+}
+
+/// See the module documentation.
+pub struct Session {
+    linear: LinearMesh,
+    topo: Topology,
+    opts: CurveOptions,
+    projector: Option<Box<dyn Projector + Send>>,
+    progress: Option<ProgressFn>,
+    threads: usize,
+    pool: Option<rayon::ThreadPool>,
+    mesh: HighOrderMesh,
+    cell_quality: Vec<ElementQuality>,
+    quality: MeshQuality,
+    report: Option<CurveReport>,
+}
+
+impl Session {
+    /// Validate and orient the linear mesh; the session starts at order 1
+    /// with the default options otherwise.
+    pub fn try_new(linear: LinearMesh) -> Result<Session> {
+        let (linear, _) = validate_and_orient(&linear)?;
+        let topo = Topology::new(&linear)?;
+        let opts = CurveOptions {
+            order: 1,
+            ..Default::default()
+        };
+        let (mesh, cell_quality, quality) = straight(&linear, &topo, &opts)?;
+        Ok(Session {
+            linear,
+            topo,
+            opts,
+            projector: None,
+            progress: None,
+            threads: 0,
+            pool: None,
+            mesh,
+            cell_quality,
+            quality,
+            report: None,
+        })
+    }
+
+    pub fn dim(&self) -> usize {
+        self.linear.dim
+    }
+    pub fn options(&self) -> &CurveOptions {
+        &self.opts
+    }
+    /// The current mesh: straight before a run, curved after a successful one.
+    pub fn mesh(&self) -> &HighOrderMesh {
+        &self.mesh
+    }
+    pub fn quality(&self) -> &MeshQuality {
+        &self.quality
+    }
+    pub fn cell_quality(&self) -> &[ElementQuality] {
+        &self.cell_quality
+    }
+    /// The report of the last successful run, if the mesh is curved.
+    pub fn report(&self) -> Option<&CurveReport> {
+        self.report.as_ref()
+    }
+
+    /// Rebuild the straight mesh for new settings; on error nothing changes.
+    fn reset(&mut self, linear: LinearMesh, opts: CurveOptions) -> Result<()> {
+        let (mesh, cq, q) = straight(&linear, &self.topo, &opts)?;
+        self.linear = linear;
+        self.opts = opts;
+        self.mesh = mesh;
+        self.cell_quality = cq;
+        self.quality = q;
+        self.report = None;
+        Ok(())
+    }
+
+    /// Tag boundary facets (`dim` vertices each). Replaces earlier tags.
+    pub fn set_boundary(&mut self, facets: Vec<usize>, tags: Vec<i32>) -> Result<()> {
+        let mut linear = self.linear.clone();
+        linear.facets = facets;
+        linear.facet_tags = tags;
+        let (linear, _) = validate_and_orient(&linear)?;
+        self.reset(linear, self.opts.clone())
+    }
+
+    /// Tag 3D feature edges with CAD curve tags. Replaces earlier ones.
+    pub fn set_feature_edges(&mut self, edges: Vec<usize>, tags: Vec<i32>) -> Result<()> {
+        let mut linear = self.linear.clone();
+        linear.feature_edges = edges;
+        linear.feature_edge_tags = tags;
+        let (linear, _) = validate_and_orient(&linear)?;
+        self.reset(linear, self.opts.clone())
+    }
+
+    pub fn set_order(&mut self, order: usize, spacing: NodeSpacing) -> Result<()> {
+        let opts = CurveOptions {
+            order,
+            spacing,
+            ..self.opts.clone()
+        };
+        validate_options(&opts)?;
+        self.reset(self.linear.clone(), opts)
+    }
+
+    pub fn set_material(&mut self, model: MaterialModel, young: f64, poisson: f64) -> Result<()> {
+        let MaterialModel::LinearElastic = model;
+        let opts = CurveOptions {
+            young,
+            poisson,
+            ..self.opts.clone()
+        };
+        validate_options(&opts)?;
+        self.opts = opts;
+        Ok(())
+    }
+
+    pub fn set_formulation(&mut self, formulation: Formulation) {
+        self.opts.formulation = formulation;
+    }
+
+    pub fn set_projector(&mut self, projector: Option<Box<dyn Projector + Send>>) {
+        self.projector = projector;
+    }
+
+    pub fn set_progress(&mut self, progress: Option<ProgressFn>) {
+        self.progress = progress;
+    }
+
+    /// Worker threads of this session's own pool (0 = one per core). The
+    /// host's global rayon pool is never used.
+    pub fn set_threads(&mut self, threads: usize) {
+        if threads != self.threads {
+            self.threads = threads;
+            self.pool = None;
+        }
+    }
+
+    /// Curve the mesh in `increments` load increments. On error the session
+    /// is exactly as before the call.
+    pub fn run(&mut self, increments: usize) -> Result<()> {
+        let opts = CurveOptions {
+            increments,
+            ..self.opts.clone()
+        };
+        validate_options(&opts)?;
+        let has_tags = !self.linear.facets.is_empty() || !self.linear.feature_edges.is_empty();
+        if has_tags && self.projector.is_none() {
+            return Err(Error::InvalidInput(
+                "boundary facets are tagged but no projector is set".into(),
+            ));
+        }
+        if self.pool.is_none() {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(self.threads)
+                .thread_name(|i| format!("hocurve-{i}"))
+                .build()
+                .map_err(|e| {
+                    Error::InvalidInput(format!("cannot start {} threads: {e}", self.threads))
+                })?;
+            self.pool = Some(pool);
+        }
+        let none = NoProjector;
+        let projector: &dyn Projector = match &self.projector {
+            Some(p) => p.as_ref(),
+            None => &none,
+        };
+        let mut always = |_: &Progress| true;
+        let progress: &mut (dyn FnMut(&Progress) -> bool + Send) = match &mut self.progress {
+            Some(p) => p.as_mut(),
+            None => &mut always,
+        };
+        let linear = &self.linear;
+        let pool = self.pool.as_ref().expect("pool was just built");
+        let curved =
+            pool.install(|| curve(linear, projector, &opts, &mut |p: &Progress| progress(p)))?;
+        self.mesh = curved.mesh;
+        self.quality = curved.report.quality.clone();
+        self.cell_quality = curved.cell_quality;
+        self.report = Some(curved.report);
+        Ok(())
+    }
+
+    /// Cell connectivity of the current mesh in the given node ordering.
+    pub fn cells(&self, ordering: NodeOrdering) -> Vec<usize> {
+        let m = &self.mesh;
+        let nodes = NodeSet::new(m.simplex, m.order, m.spacing);
+        let target = match ordering {
+            NodeOrdering::Native => return m.cells.clone(),
+            NodeOrdering::Gmsh => ordering::gmsh_multi_indices(m.simplex, m.order),
+            NodeOrdering::Vtk => ordering::vtk_multi_indices(m.simplex, m.order),
+        };
+        let perm = ordering::permutation(&nodes.multi, &target)
+            .expect("orderings are permutations of the node set");
+        m.cells
+            .chunks_exact(nodes.len())
+            .flat_map(|c| perm.iter().map(move |&k| c[k]))
+            .collect()
+    }
+}
+
+/// Elevate with straight sides; quality is exactly 1 for affine elements.
+fn straight(
+    linear: &LinearMesh,
+    topo: &Topology,
+    opts: &CurveOptions,
+) -> Result<(HighOrderMesh, Vec<ElementQuality>, MeshQuality)> {
+    let nodes = NodeSet::new(topo.simplex, opts.order, opts.spacing);
+    let mesh = HighOrderMesh::elevate(linear, topo, &nodes, opts.spacing)?;
+    let cq = vec![
+        ElementQuality {
+            q1: 1.0,
+            q2: 1.0,
+            q3: 1.0
+        };
+        mesh.n_cells()
+    ];
+    let q = quality::summarize(&cq);
+    Ok((mesh, cq, q))
+}
+
+/// Used when nothing is tagged: any projection request is an error.
+struct NoProjector;
+
+impl Projector for NoProjector {
+    fn project(
+        &self,
+        d: usize,
+        t: i32,
+        _: &[[f64; 3]],
+        _: &mut [[f64; 3]],
+    ) -> std::result::Result<(), String> {
+        Err(format!("no projector is set (entity dim {d}, tag {t})"))
+    }
+}
