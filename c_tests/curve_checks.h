@@ -16,13 +16,13 @@ typedef struct Triple {
   int32_t tag;
 } Triple;
 
-static int cmp_triple(const void *a, const void *b) {
+static inline int cmp_triple(const void *a, const void *b) {
   const Triple *x = (const Triple *)a, *y = (const Triple *)b;
   for (int k = 0; k < 3; ++k)
     if (x->v[k] != y->v[k]) return x->v[k] < y->v[k] ? -1 : 1;
   return 0;
 }
-static void sort3(int64_t *v) {
+static inline void sort3(int64_t *v) {
   for (int i = 0; i < 2; ++i)
     for (int j = 0; j < 2 - i; ++j)
       if (v[j] > v[j + 1]) {
@@ -32,13 +32,13 @@ static void sort3(int64_t *v) {
       }
 }
 
-static double det3(const double *a, const double *b, const double *c) {
+static inline double det3(const double *a, const double *b, const double *c) {
   return a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
          a[2] * (b[0] * c[1] - b[1] * c[0]);
 }
 
 /* Barycentric coordinates of x in tet (v0..v3). */
-static void barycentric(const double *v0, const double *v1, const double *v2, const double *v3,
+static inline void barycentric(const double *v0, const double *v1, const double *v2, const double *v3,
                         const double *x, double *lam) {
   double e1[3], e2[3], e3[3], r[3];
   for (int k = 0; k < 3; ++k) {
@@ -54,7 +54,7 @@ static void barycentric(const double *v0, const double *v1, const double *v2, co
   lam[0] = 1.0 - lam[1] - lam[2] - lam[3];
 }
 
-static HocMesh *create_fixture_mesh(const FixtureMesh *m, HocProjectFn proj, void *user) {
+static inline HocMesh *create_fixture_mesh(const FixtureMesh *m, HocProjectFn proj, void *user) {
   HocMesh *mesh = NULL;
   CHECK_OK(NULL, hoc_mesh_create(3, m->n_vertices, m->coords, m->n_cells, m->cells, &mesh));
   CHECK(mesh != NULL, "create gave no handle");
@@ -64,7 +64,7 @@ static HocMesh *create_fixture_mesh(const FixtureMesh *m, HocProjectFn proj, voi
 }
 
 /* Marks nodes (of the current straight-sided mesh) lying on a boundary facet with tag `tag`. */
-static size_t mark_surface_nodes(const FixtureMesh *m, int32_t tag, size_t n_cells, size_t npc,
+static inline size_t mark_surface_nodes(const FixtureMesh *m, int32_t tag, size_t n_cells, size_t npc,
                                  const int64_t *cells, const double *x, size_t n_nodes,
                                  unsigned char *on) {
   Triple *t = (Triple *)malloc(sizeof(Triple) * (m->n_facets ? m->n_facets : 1));
@@ -101,7 +101,7 @@ static size_t mark_surface_nodes(const FixtureMesh *m, int32_t tag, size_t n_cel
 
 /* Curves at order p (optimal spacing) and checks: no invalid cell, every node on a
  * `tag` facet is on the surface to 1e-10, boundary vertices did not move. */
-static void curve_and_check(const char *name, const FixtureMesh *m, HocProjectFn proj, int32_t tag,
+static inline void curve_and_check(const char *name, const FixtureMesh *m, HocProjectFn proj, int32_t tag,
                             DistFn dist, int p) {
   size_t calls = 0;
   HocMesh *mesh = create_fixture_mesh(m, proj, &calls);
@@ -171,7 +171,7 @@ static const int GMSH_TET10_EDGES[6][2] = {{0, 1}, {1, 2}, {2, 0}, {3, 0}, {3, 2
 static const int VTK_TET10_EDGES[6][2] = {{0, 1}, {1, 2}, {0, 2}, {0, 3}, {1, 3}, {2, 3}};
 
 /* Checks a p=2 equispaced straight mesh in an ordering: edge nodes at the midpoints. */
-static void check_p2_ordering(const char *name, size_t n_cells, const int64_t *cells, const double *x,
+static inline void check_p2_ordering(const char *name, size_t n_cells, const int64_t *cells, const double *x,
                               const int edges[6][2]) {
   double worst = 0.0;
   for (size_t c = 0; c < n_cells; ++c) {
@@ -187,7 +187,7 @@ static void check_p2_ordering(const char *name, size_t n_cells, const int64_t *c
 
 /* Independent check of validity at p=2: det J of the quadratic map at the 35
  * points of the degree-4 barycentric lattice (vertices included) of every cell. */
-static void jacobian_check_p2(const char *name, const FixtureMesh *m, HocProjectFn proj) {
+static inline void jacobian_check_p2(const char *name, const FixtureMesh *m, HocProjectFn proj) {
   HocMesh *mesh = create_fixture_mesh(m, proj, NULL);
   CHECK_OK(mesh, hoc_mesh_set_order(mesh, 2, HOC_SPACING_EQUISPACED));
   size_t n_nodes = 0, n_cells = 0, npc = 0;
@@ -207,11 +207,13 @@ static void jacobian_check_p2(const char *name, const FixtureMesh *m, HocProject
   CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, n_nodes, x));
   CHECK_OK(mesh, hoc_mesh_get_cells(mesh, HOC_ORDERING_GMSH, n_cells * 10, cells));
   static const double dL[4][3] = {{-1, -1, -1}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  double *q3 = (double *)malloc(sizeof(double) * n_cells);
+  CHECK_OK(mesh, hoc_mesh_cell_quality(mesh, 3, n_cells, q3));
   double worst = 1.0;
   size_t points = 0;
   for (size_t c = 0; c < n_cells; ++c) {
     const int64_t *cell = cells + 10 * c;
-    double jmin = INFINITY, jmax = 0.0;
+    double jmin = INFINITY, jmax = 0.0, Lmin[4] = {0};
     for (int i = 0; i <= 4; ++i)
       for (int j = 0; i + j <= 4; ++j)
         for (int k = 0; i + j + k <= 4; ++k) {
@@ -234,16 +236,23 @@ static void jacobian_check_p2(const char *name, const FixtureMesh *m, HocProject
           for (int s = 0; s < 3; ++s)
             for (int r = 0; r < 3; ++r) cols[s][r] = J[r][s];
           double d = det3(cols[0], cols[1], cols[2]);
-          jmin = fmin(jmin, d);
+          if (d < jmin) {
+            jmin = d;
+            memcpy(Lmin, L, sizeof L);
+          }
           jmax = fmax(jmax, fabs(d));
           ++points;
         }
-    CHECK(jmin > 0, "%s p=2: cell %zu has det J = %g at a lattice point", name, c, jmin);
+    CHECK(jmin > 0,
+          "%s p=2: cell %zu has det J = %g (max |det J| %g) at barycentric (%g %g %g %g); "
+          "the library's Q3 for the cell is %g",
+          name, c, jmin, jmax, Lmin[0], Lmin[1], Lmin[2], Lmin[3], q3[c]);
     worst = fmin(worst, jmin / jmax);
   }
   printf("%s p=2 independent check: det J > 0 at all %zu lattice points (35 per cell), "
          "min det J / max det J per cell = %.3f; gmsh and vtk edge nodes at midpoints\n",
          name, points, worst);
+  free(q3);
   free(cells);
   free(x);
   CHECK_OK(NULL, hoc_mesh_destroy(&mesh));

@@ -3,6 +3,7 @@
 ! c_funloc). Every boundary node ends on its circle: the inner and outer
 ! circles each carry n_theta*p nodes to 1e-10 (only the n_theta vertices before).
 module circle_projector
+  use, intrinsic :: iso_c_binding
   use hocurve
   implicit none
 contains
@@ -41,6 +42,7 @@ contains
 end module circle_projector
 
 program t401_curve_f
+  use, intrinsic :: iso_c_binding
   use hocurve
   use circle_projector
   implicit none

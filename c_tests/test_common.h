@@ -70,7 +70,7 @@ static inline double dist_torus(const double *p) {
 
 /* Projector for the TetGen fixture: tag 1 sphere, tag 2 box. user_data: a
  * size_t call counter (may be NULL). */
-static int sphere_box_projector(void *user_data, int entity_dim, int entity_tag, size_t n,
+static inline int sphere_box_projector(void *user_data, int entity_dim, int entity_tag, size_t n,
                                 const double *in, double *out) {
   if (user_data) ++*(size_t *)user_data;
   if (entity_dim != 2) return 1;
@@ -86,7 +86,7 @@ static int sphere_box_projector(void *user_data, int entity_dim, int entity_tag,
 }
 
 /* Projector for the CGAL torus (tag 1). */
-static int torus_projector(void *user_data, int entity_dim, int entity_tag, size_t n,
+static inline int torus_projector(void *user_data, int entity_dim, int entity_tag, size_t n,
                            const double *in, double *out) {
   if (user_data) ++*(size_t *)user_data;
   if (entity_dim != 2 || entity_tag != 1) return 1;

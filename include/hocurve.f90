@@ -19,7 +19,8 @@ module hocurve
   private
 
   public :: c_ptr, c_funptr, c_null_ptr, c_null_funptr, c_funloc, c_loc, &
-            c_int, c_int32_t, c_int64_t, c_size_t, c_double, c_char, c_null_char, c_associated
+            c_int, c_int32_t, c_int64_t, c_size_t, c_double, c_char, c_null_char, c_associated, &
+            c_f_pointer
 
   ! HocStatus
   integer(c_int), parameter, public :: HOC_OK = 0
