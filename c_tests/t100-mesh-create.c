@@ -153,13 +153,13 @@ int main(void) {
   /* ---- every function with a NULL handle or NULL output ---- */
   HocQuality q;
   double d;
-  int64_t i64;
+  int64_t i64 = 0, ids[3] = {0, 1, 2};
   int32_t i32 = 1;
   EXPECT("create: out NULL", hoc_mesh_create(2, 4, sq, 2, sq_cells, NULL), NULL, NULLP);
   create_fails("create: coords NULL", 2, 4, NULL, 2, sq_cells, NULLP, NULLP);
   create_fails("create: cells NULL", 2, 4, sq, 2, NULL, NULLP, NULLP);
-  EXPECT("set_boundary: NULL handle", hoc_mesh_set_boundary(NULL, 0, &i64, &i32), NULL, NULLP);
-  EXPECT("set_feature_edges: NULL handle", hoc_mesh_set_feature_edges(NULL, 0, &i64, &i32), NULL, NULLP);
+  EXPECT("set_boundary: NULL handle", hoc_mesh_set_boundary(NULL, 0, ids, &i32), NULL, NULLP);
+  EXPECT("set_feature_edges: NULL handle", hoc_mesh_set_feature_edges(NULL, 0, ids, &i32), NULL, NULLP);
   EXPECT("set_projector: NULL handle", hoc_mesh_set_projector(NULL, sphere_box_projector, NULL), NULL, NULLP);
   EXPECT("set_progress: NULL handle", hoc_mesh_set_progress(NULL, progress_cancel, NULL), NULL, NULLP);
   EXPECT("set_threads: NULL handle", hoc_mesh_set_threads(NULL, 1), NULL, NULLP);
@@ -183,7 +183,7 @@ int main(void) {
   EXPECT("get_cells: cells NULL", hoc_mesh_get_cells(mesh, HOC_ORDERING_NATIVE, 30, NULL), mesh, NULLP);
   EXPECT("write: path NULL", hoc_mesh_write(mesh, NULL), mesh, NULLP);
   EXPECT("set_boundary: facets NULL", hoc_mesh_set_boundary(mesh, 1, NULL, &i32), mesh, NULLP);
-  EXPECT("set_boundary: tags NULL", hoc_mesh_set_boundary(mesh, 1, &i64, NULL), mesh, NULLP);
+  EXPECT("set_boundary: tags NULL", hoc_mesh_set_boundary(mesh, 1, ids, NULL), mesh, NULLP);
 
   /* ---- buffer sizes and enum values on a valid handle ---- */
   double big[2 * 25];

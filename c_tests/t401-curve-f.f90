@@ -132,6 +132,7 @@ program t401_curve_f
   print '(a, a, a, i0, a, i0, a, i0, a, f6.3, a, i0, a)', "hocurve ", hoc_string(hoc_version()), &
     " via Fortran: p=", p, ", ", on_inner, " + ", on_outer, " nodes on the circles, min Q3 ", &
     q%min_q3, ", ", calls, " projector calls"
+  deallocate (x)
   call check(hoc_mesh_destroy(mesh), "destroy")
   if (c_associated(mesh)) error stop "destroy did not clear the handle"
 
