@@ -75,7 +75,8 @@ static double compare(int threads, int p1, int p2, int bitwise) {
 
 int main(int argc, char **argv) {
   int p1 = argc > 1 ? atoi(argv[1]) : 3, p2 = argc > 2 ? atoi(argv[2]) : 4;
-  CHECK(fixture_tetgen_sphere_box(2, 2, 0.5, &fx) == 0, "TetGen failed");
+  int subdivisions = argc > 3 ? atoi(argv[3]) : 2; /* of the icosphere */
+  CHECK(fixture_tetgen_sphere_box(subdivisions, 2, subdivisions > 1 ? 0.5 : 2.0, &fx) == 0, "TetGen failed");
   compare(1, p1, p2, 1);
   compare(2, p1, p2, 0);
   fixture_mesh_free(&fx);
