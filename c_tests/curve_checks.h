@@ -1,0 +1,261 @@
+/* Checks shared by t300-curve-sphere and t301-curve-torus: curve a fixture mesh
+ * at order p through the C ABI and verify the result independently. */
+#ifndef HOC_CURVE_CHECKS_H
+#define HOC_CURVE_CHECKS_H
+
+#include "fixtures.h"
+#include "test_common.h"
+
+#include <stdint.h>
+#include <time.h>
+
+typedef double (*DistFn)(const double *p);
+
+typedef struct Triple {
+  int64_t v[3];
+  int32_t tag;
+} Triple;
+
+static inline int cmp_triple(const void *a, const void *b) {
+  const Triple *x = (const Triple *)a, *y = (const Triple *)b;
+  for (int k = 0; k < 3; ++k)
+    if (x->v[k] != y->v[k]) return x->v[k] < y->v[k] ? -1 : 1;
+  return 0;
+}
+static inline void sort3(int64_t *v) {
+  for (int i = 0; i < 2; ++i)
+    for (int j = 0; j < 2 - i; ++j)
+      if (v[j] > v[j + 1]) {
+        int64_t t = v[j];
+        v[j] = v[j + 1];
+        v[j + 1] = t;
+      }
+}
+
+static inline double det3(const double *a, const double *b, const double *c) {
+  return a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
+         a[2] * (b[0] * c[1] - b[1] * c[0]);
+}
+
+/* Barycentric coordinates of x in tet (v0..v3). */
+static inline void barycentric(const double *v0, const double *v1, const double *v2, const double *v3,
+                        const double *x, double *lam) {
+  double e1[3], e2[3], e3[3], r[3];
+  for (int k = 0; k < 3; ++k) {
+    e1[k] = v1[k] - v0[k];
+    e2[k] = v2[k] - v0[k];
+    e3[k] = v3[k] - v0[k];
+    r[k] = x[k] - v0[k];
+  }
+  double d = det3(e1, e2, e3);
+  lam[1] = det3(r, e2, e3) / d;
+  lam[2] = det3(e1, r, e3) / d;
+  lam[3] = det3(e1, e2, r) / d;
+  lam[0] = 1.0 - lam[1] - lam[2] - lam[3];
+}
+
+static inline HocMesh *create_fixture_mesh(const FixtureMesh *m, HocProjectFn proj, void *user) {
+  HocMesh *mesh = NULL;
+  CHECK_OK(NULL, hoc_mesh_create(3, m->n_vertices, m->coords, m->n_cells, m->cells, &mesh));
+  CHECK(mesh != NULL, "create gave no handle");
+  CHECK_OK(mesh, hoc_mesh_set_boundary(mesh, m->n_facets, m->facets, m->facet_tags));
+  CHECK_OK(mesh, hoc_mesh_set_projector(mesh, proj, user));
+  return mesh;
+}
+
+/* Marks nodes (of the current straight-sided mesh) lying on a boundary facet with tag `tag`. */
+static inline size_t mark_surface_nodes(const FixtureMesh *m, int32_t tag, size_t n_cells, size_t npc,
+                                 const int64_t *cells, const double *x, size_t n_nodes,
+                                 unsigned char *on) {
+  Triple *t = (Triple *)malloc(sizeof(Triple) * (m->n_facets ? m->n_facets : 1));
+  for (size_t f = 0; f < m->n_facets; ++f) {
+    for (int k = 0; k < 3; ++k) t[f].v[k] = m->facets[3 * f + k];
+    sort3(t[f].v);
+    t[f].tag = m->facet_tags[f];
+  }
+  qsort(t, m->n_facets, sizeof(Triple), cmp_triple);
+  memset(on, 0, n_nodes);
+  for (size_t c = 0; c < n_cells; ++c) {
+    const int64_t *cell = cells + c * npc;
+    for (int omit = 0; omit < 4; ++omit) {
+      Triple key;
+      int j = 0;
+      for (int k = 0; k < 4; ++k)
+        if (k != omit) key.v[j++] = cell[k];
+      sort3(key.v);
+      Triple *hit = (Triple *)bsearch(&key, t, m->n_facets, sizeof(Triple), cmp_triple);
+      if (!hit || hit->tag != tag) continue;
+      for (size_t a = 0; a < npc; ++a) {
+        double lam[4];
+        barycentric(x + 3 * cell[0], x + 3 * cell[1], x + 3 * cell[2], x + 3 * cell[3],
+                    x + 3 * cell[a], lam);
+        if (fabs(lam[omit]) < 1e-9) on[cell[a]] = 1;
+      }
+    }
+  }
+  free(t);
+  size_t count = 0;
+  for (size_t i = 0; i < n_nodes; ++i) count += on[i];
+  return count;
+}
+
+/* Curves at order p (optimal spacing) and checks: no invalid cell, every node on a
+ * `tag` facet is on the surface to 1e-10, boundary vertices did not move. */
+static inline void curve_and_check(const char *name, const FixtureMesh *m, HocProjectFn proj, int32_t tag,
+                            DistFn dist, int p) {
+  size_t calls = 0;
+  HocMesh *mesh = create_fixture_mesh(m, proj, &calls);
+  CHECK_OK(mesh, hoc_mesh_set_order(mesh, p, HOC_SPACING_OPTIMAL));
+  size_t n_nodes = 0, n_cells = 0, npc = 0;
+  CHECK_OK(mesh, hoc_mesh_node_count(mesh, &n_nodes));
+  CHECK_OK(mesh, hoc_mesh_cell_count(mesh, &n_cells, &npc));
+  CHECK(n_cells == m->n_cells, "cell count %zu, expected %zu", n_cells, m->n_cells);
+  CHECK(npc == (size_t)((p + 1) * (p + 2) * (p + 3) / 6), "nodes per cell %zu at p=%d", npc, p);
+  double *x0 = (double *)malloc(sizeof(double) * 3 * n_nodes);
+  double *x = (double *)malloc(sizeof(double) * 3 * n_nodes);
+  int64_t *cells = (int64_t *)malloc(sizeof(int64_t) * n_cells * npc);
+  unsigned char *on = (unsigned char *)malloc(n_nodes);
+  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, n_nodes, x0));
+  CHECK_OK(mesh, hoc_mesh_get_cells(mesh, HOC_ORDERING_NATIVE, n_cells * npc, cells));
+  for (size_t v = 0; v < m->n_vertices; ++v)
+    for (int k = 0; k < 3; ++k)
+      CHECK(x0[3 * v + k] == m->coords[3 * v + k], "node %zu is not vertex %zu before the run", v, v);
+  size_t n_on = mark_surface_nodes(m, tag, n_cells, npc, cells, x0, n_nodes, on);
+  double before = 0.0;
+  for (size_t i = 0; i < n_nodes; ++i)
+    if (on[i]) before = fmax(before, dist(x0 + 3 * i));
+
+  clock_t t0 = clock();
+  CHECK_OK(mesh, hoc_mesh_run_increments(mesh, 1));
+  double secs = (double)(clock() - t0) / CLOCKS_PER_SEC;
+  CHECK(calls > 0, "the projector was never called");
+
+  HocQuality q;
+  CHECK_OK(mesh, hoc_mesh_quality(mesh, &q));
+  CHECK(q.n_cells == n_cells, "quality counts %zu cells", q.n_cells);
+  CHECK(q.n_invalid == 0, "p=%d: %zu invalid cells (min Q3 %g)", p, q.n_invalid, q.min_q3);
+  CHECK(q.min_q3 > 0 && q.min_q3 <= 1, "p=%d: min Q3 %g", p, q.min_q3);
+
+  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, n_nodes, x));
+  double after = 0.0, vmove = 0.0;
+  for (size_t i = 0; i < n_nodes; ++i)
+    if (on[i]) {
+      after = fmax(after, dist(x + 3 * i));
+      if (i < m->n_vertices)
+        for (int k = 0; k < 3; ++k) vmove = fmax(vmove, fabs(x[3 * i + k] - x0[3 * i + k]));
+    }
+  CHECK(after < 1e-10, "p=%d: a surface node is %g off the surface", p, after);
+  CHECK(vmove < 1e-14, "p=%d: a surface vertex moved by %g", p, vmove);
+  /* Quality per cell agrees with the summary. */
+  double *q3 = (double *)malloc(sizeof(double) * n_cells);
+  CHECK_OK(mesh, hoc_mesh_cell_quality(mesh, 3, n_cells, q3));
+  double qmin = 1.0;
+  for (size_t c = 0; c < n_cells; ++c) qmin = fmin(qmin, q3[c]);
+  CHECK(qmin == q.min_q3, "min of cell Q3 %g != summary %g", qmin, q.min_q3);
+  printf("%s p=%d: %zu cells, %zu nodes, %zu on the surface (off by %.2e straight, %.2e curved), "
+         "min Q1 %.3f Q2 %.3f Q3 %.3f mean Q3 %.3f, %.2f s CPU\n",
+         name, p, n_cells, n_nodes, n_on, before, after, q.min_q1, q.min_q2, q.min_q3, q.mean_q3,
+         secs);
+  free(q3);
+  free(on);
+  free(cells);
+  free(x);
+  free(x0);
+  CHECK_OK(NULL, hoc_mesh_destroy(&mesh));
+  CHECK(mesh == NULL, "destroy did not clear the handle");
+}
+
+/* Quadratic tet in gmsh order: vertices 0..3, edges 01, 12, 20, 30, 32, 31. */
+static const int GMSH_TET10_EDGES[6][2] = {{0, 1}, {1, 2}, {2, 0}, {3, 0}, {3, 2}, {3, 1}};
+/* VTK_QUADRATIC_TETRA / VTK_LAGRANGE_TETRAHEDRON p=2: edges 01, 12, 02, 03, 13, 23. */
+static const int VTK_TET10_EDGES[6][2] = {{0, 1}, {1, 2}, {0, 2}, {0, 3}, {1, 3}, {2, 3}};
+
+/* Checks a p=2 equispaced straight mesh in an ordering: edge nodes at the midpoints. */
+static inline void check_p2_ordering(const char *name, size_t n_cells, const int64_t *cells, const double *x,
+                              const int edges[6][2]) {
+  double worst = 0.0;
+  for (size_t c = 0; c < n_cells; ++c) {
+    const int64_t *cell = cells + 10 * c;
+    for (int e = 0; e < 6; ++e)
+      for (int k = 0; k < 3; ++k) {
+        double mid = 0.5 * (x[3 * cell[edges[e][0]] + k] + x[3 * cell[edges[e][1]] + k]);
+        worst = fmax(worst, fabs(mid - x[3 * cell[4 + e] + k]));
+      }
+  }
+  CHECK(worst < 1e-12, "%s p=2 ordering: an edge node is %g from its edge's midpoint", name, worst);
+}
+
+/* Independent check of validity at p=2: det J of the quadratic map at the 35
+ * points of the degree-4 barycentric lattice (vertices included) of every cell. */
+static inline void jacobian_check_p2(const char *name, const FixtureMesh *m, HocProjectFn proj) {
+  HocMesh *mesh = create_fixture_mesh(m, proj, NULL);
+  CHECK_OK(mesh, hoc_mesh_set_order(mesh, 2, HOC_SPACING_EQUISPACED));
+  size_t n_nodes = 0, n_cells = 0, npc = 0;
+  CHECK_OK(mesh, hoc_mesh_node_count(mesh, &n_nodes));
+  CHECK_OK(mesh, hoc_mesh_cell_count(mesh, &n_cells, &npc));
+  CHECK(npc == 10, "p=2 tet has %zu nodes", npc);
+  double *x = (double *)malloc(sizeof(double) * 3 * n_nodes);
+  int64_t *cells = (int64_t *)malloc(sizeof(int64_t) * n_cells * 10);
+  /* Before the run: the orderings put edge nodes where gmsh and VTK expect them. */
+  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, n_nodes, x));
+  CHECK_OK(mesh, hoc_mesh_get_cells(mesh, HOC_ORDERING_VTK, n_cells * 10, cells));
+  check_p2_ordering("vtk", n_cells, cells, x, VTK_TET10_EDGES);
+  CHECK_OK(mesh, hoc_mesh_get_cells(mesh, HOC_ORDERING_GMSH, n_cells * 10, cells));
+  check_p2_ordering("gmsh", n_cells, cells, x, GMSH_TET10_EDGES);
+
+  CHECK_OK(mesh, hoc_mesh_run_increments(mesh, 1));
+  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, n_nodes, x));
+  CHECK_OK(mesh, hoc_mesh_get_cells(mesh, HOC_ORDERING_GMSH, n_cells * 10, cells));
+  static const double dL[4][3] = {{-1, -1, -1}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  double *q3 = (double *)malloc(sizeof(double) * n_cells);
+  CHECK_OK(mesh, hoc_mesh_cell_quality(mesh, 3, n_cells, q3));
+  double worst = 1.0;
+  size_t points = 0;
+  for (size_t c = 0; c < n_cells; ++c) {
+    const int64_t *cell = cells + 10 * c;
+    double jmin = INFINITY, jmax = 0.0, Lmin[4] = {0};
+    for (int i = 0; i <= 4; ++i)
+      for (int j = 0; i + j <= 4; ++j)
+        for (int k = 0; i + j + k <= 4; ++k) {
+          double L[4] = {(4 - i - j - k) / 4.0, i / 4.0, j / 4.0, k / 4.0};
+          double dN[10][4] = {{0}}; /* dN/dL_l */
+          for (int v = 0; v < 4; ++v) dN[v][v] = 4 * L[v] - 1;
+          for (int ed = 0; ed < 6; ++ed) {
+            int a = GMSH_TET10_EDGES[ed][0], b = GMSH_TET10_EDGES[ed][1];
+            dN[4 + ed][a] = 4 * L[b];
+            dN[4 + ed][b] = 4 * L[a];
+          }
+          double J[3][3] = {{0}}; /* J[r][s] = dx_r / dxi_s */
+          for (int nd = 0; nd < 10; ++nd)
+            for (int s = 0; s < 3; ++s) {
+              double g = 0;
+              for (int l = 0; l < 4; ++l) g += dN[nd][l] * dL[l][s];
+              for (int r = 0; r < 3; ++r) J[r][s] += x[3 * cell[nd] + r] * g;
+            }
+          double cols[3][3];
+          for (int s = 0; s < 3; ++s)
+            for (int r = 0; r < 3; ++r) cols[s][r] = J[r][s];
+          double d = det3(cols[0], cols[1], cols[2]);
+          if (d < jmin) {
+            jmin = d;
+            memcpy(Lmin, L, sizeof L);
+          }
+          jmax = fmax(jmax, fabs(d));
+          ++points;
+        }
+    CHECK(jmin > 0,
+          "%s p=2: cell %zu has det J = %g (max |det J| %g) at barycentric (%g %g %g %g); "
+          "the library's Q3 for the cell is %g",
+          name, c, jmin, jmax, Lmin[0], Lmin[1], Lmin[2], Lmin[3], q3[c]);
+    worst = fmin(worst, jmin / jmax);
+  }
+  printf("%s p=2 independent check: det J > 0 at all %zu lattice points (35 per cell), "
+         "min det J / max det J per cell = %.3f; gmsh and vtk edge nodes at midpoints\n",
+         name, points, worst);
+  free(q3);
+  free(cells);
+  free(x);
+  CHECK_OK(NULL, hoc_mesh_destroy(&mesh));
+}
+
+#endif

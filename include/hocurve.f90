@@ -1,0 +1,300 @@
+!> @file hocurve.f90
+!> @brief Fortran 2003 bindings to the hocurve C ABI (hocurve.h).
+!>
+!> Compile this file with your program (module files are compiler specific);
+!> with CMake, `find_package(hocurve)` sets hocurve_FORTRAN_MODULE_SOURCE to it.
+!>
+!> The interfaces are the C functions themselves, so:
+!> - a mesh handle is a type(c_ptr); hoc_mesh_create(..., mesh) fills it and
+!>   hoc_mesh_destroy(mesh) frees it and sets it to c_null_ptr;
+!> - vertex, node and cell ids are 0-based integer(c_int64_t), as in C;
+!> - coordinates are interleaved: coords(dim, n) in Fortran order is the C layout;
+!> - counts are integer(c_size_t), passed by value;
+!> - strings come back as type(c_ptr): use hoc_string(ptr) to get a Fortran string;
+!> - a projector is a bind(C) function with the interface hoc_project_fn,
+!>   passed as c_funloc(f); a progress callback has the interface hoc_progress_fn.
+module hocurve
+  use, intrinsic :: iso_c_binding
+  implicit none
+  private
+
+  public :: c_ptr, c_funptr, c_null_ptr, c_null_funptr, c_funloc, c_loc, &
+            c_int, c_int32_t, c_int64_t, c_size_t, c_double, c_char, c_null_char, c_associated, &
+            c_f_pointer
+
+  ! HocStatus
+  integer(c_int), parameter, public :: HOC_OK = 0
+  integer(c_int), parameter, public :: HOC_ERROR_NULL_POINTER = 1
+  integer(c_int), parameter, public :: HOC_ERROR_INVALID_ARGUMENT = 2
+  integer(c_int), parameter, public :: HOC_ERROR_INVALID_MESH = 3
+  integer(c_int), parameter, public :: HOC_ERROR_PROJECTION = 4
+  integer(c_int), parameter, public :: HOC_ERROR_SOLVER = 5
+  integer(c_int), parameter, public :: HOC_ERROR_INVALID_ELEMENT = 6
+  integer(c_int), parameter, public :: HOC_ERROR_IO = 7
+  integer(c_int), parameter, public :: HOC_ERROR_CANCELLED = 8
+  integer(c_int), parameter, public :: HOC_ERROR_BUFFER_SIZE = 9
+  integer(c_int), parameter, public :: HOC_ERROR_PANIC = 10
+  ! HocNodeSpacing
+  integer(c_int), parameter, public :: HOC_SPACING_OPTIMAL = 0
+  integer(c_int), parameter, public :: HOC_SPACING_EQUISPACED = 1
+  ! HocMaterial
+  integer(c_int), parameter, public :: HOC_MATERIAL_LINEAR_ELASTIC = 0
+  integer(c_int), parameter, public :: HOC_MATERIAL_NEO_HOOKEAN = 1
+  integer(c_int), parameter, public :: HOC_MATERIAL_MOONEY_RIVLIN = 2
+  integer(c_int), parameter, public :: HOC_MATERIAL_NI_MOONEY_RIVLIN = 3
+  integer(c_int), parameter, public :: HOC_MATERIAL_TRANSVERSELY_ISOTROPIC = 4
+  integer(c_int), parameter, public :: HOC_MATERIAL_TRANSVERSELY_ISOTROPIC_LINEAR = 5
+  ! HocFormulation
+  integer(c_int), parameter, public :: HOC_FORMULATION_LINEAR = 0
+  integer(c_int), parameter, public :: HOC_FORMULATION_ILE = 1
+  integer(c_int), parameter, public :: HOC_FORMULATION_IIL = 2
+  integer(c_int), parameter, public :: HOC_FORMULATION_CIL = 3
+  integer(c_int), parameter, public :: HOC_FORMULATION_NONLINEAR = 4
+  ! HocNodeOrdering
+  integer(c_int), parameter, public :: HOC_ORDERING_NATIVE = 0
+  integer(c_int), parameter, public :: HOC_ORDERING_GMSH = 1
+  integer(c_int), parameter, public :: HOC_ORDERING_VTK = 2
+  ! Progress stages
+  integer(c_int), parameter, public :: HOC_STAGE_ELEVATE = 0
+  integer(c_int), parameter, public :: HOC_STAGE_PROJECT = 1
+  integer(c_int), parameter, public :: HOC_STAGE_INCREMENT = 2
+  integer(c_int), parameter, public :: HOC_STAGE_QUALITY = 3
+
+  !> HocQuality: minima of Q1..Q5 over the cells, mean Q3, invalid and total cell counts.
+  type, bind(C), public :: hoc_quality
+    real(c_double) :: min_q1, min_q2, min_q3, min_q4, min_q5, mean_q3
+    integer(c_size_t) :: n_invalid
+    integer(c_size_t) :: n_cells
+  end type hoc_quality
+
+  abstract interface
+    !> HocProjectFn: project n_points points (n_points*dim coordinates) onto
+    !> entity (entity_dim, entity_tag); return 0 on success.
+    function hoc_project_fn(user_data, entity_dim, entity_tag, n_points, points, projected) &
+        bind(C) result(status)
+      import :: c_ptr, c_int, c_size_t, c_double
+      type(c_ptr), value :: user_data
+      integer(c_int), value :: entity_dim, entity_tag
+      integer(c_size_t), value :: n_points
+      real(c_double), intent(in) :: points(*)
+      real(c_double), intent(out) :: projected(*)
+      integer(c_int) :: status
+    end function hoc_project_fn
+
+    !> HocProgressFn: return 0 to continue, nonzero to cancel.
+    function hoc_progress_fn(user_data, stage, step, total) bind(C) result(status)
+      import :: c_ptr, c_int
+      type(c_ptr), value :: user_data
+      integer(c_int), value :: stage, step, total
+      integer(c_int) :: status
+    end function hoc_progress_fn
+  end interface
+  public :: hoc_project_fn, hoc_progress_fn
+
+  interface
+    function hoc_mesh_create(dim, n_vertices, coords, n_cells, cells, mesh) &
+        bind(C, name="hoc_mesh_create") result(status)
+      import :: c_int, c_size_t, c_double, c_int64_t, c_ptr
+      integer(c_int), value :: dim
+      integer(c_size_t), value :: n_vertices
+      real(c_double), intent(in) :: coords(*)
+      integer(c_size_t), value :: n_cells
+      integer(c_int64_t), intent(in) :: cells(*)
+      type(c_ptr), intent(out) :: mesh
+      integer(c_int) :: status
+    end function hoc_mesh_create
+
+    function hoc_mesh_destroy(mesh) bind(C, name="hoc_mesh_destroy") result(status)
+      import :: c_int, c_ptr
+      type(c_ptr), intent(inout) :: mesh
+      integer(c_int) :: status
+    end function hoc_mesh_destroy
+
+    function hoc_mesh_set_boundary(mesh, n_facets, facets, entity_tags) &
+        bind(C, name="hoc_mesh_set_boundary") result(status)
+      import :: c_int, c_size_t, c_int64_t, c_int32_t, c_ptr
+      type(c_ptr), value :: mesh
+      integer(c_size_t), value :: n_facets
+      integer(c_int64_t), intent(in) :: facets(*)
+      integer(c_int32_t), intent(in) :: entity_tags(*)
+      integer(c_int) :: status
+    end function hoc_mesh_set_boundary
+
+    function hoc_mesh_set_feature_edges(mesh, n_edges, edges, curve_tags) &
+        bind(C, name="hoc_mesh_set_feature_edges") result(status)
+      import :: c_int, c_size_t, c_int64_t, c_int32_t, c_ptr
+      type(c_ptr), value :: mesh
+      integer(c_size_t), value :: n_edges
+      integer(c_int64_t), intent(in) :: edges(*)
+      integer(c_int32_t), intent(in) :: curve_tags(*)
+      integer(c_int) :: status
+    end function hoc_mesh_set_feature_edges
+
+    !> fn: c_funloc of a bind(C) function with interface hoc_project_fn (or c_null_funptr).
+    function hoc_mesh_set_projector(mesh, fn, user_data) &
+        bind(C, name="hoc_mesh_set_projector") result(status)
+      import :: c_int, c_ptr, c_funptr
+      type(c_ptr), value :: mesh
+      type(c_funptr), value :: fn
+      type(c_ptr), value :: user_data
+      integer(c_int) :: status
+    end function hoc_mesh_set_projector
+
+    !> fn: c_funloc of a bind(C) function with interface hoc_progress_fn (or c_null_funptr).
+    function hoc_mesh_set_progress(mesh, fn, user_data) &
+        bind(C, name="hoc_mesh_set_progress") result(status)
+      import :: c_int, c_ptr, c_funptr
+      type(c_ptr), value :: mesh
+      type(c_funptr), value :: fn
+      type(c_ptr), value :: user_data
+      integer(c_int) :: status
+    end function hoc_mesh_set_progress
+
+    function hoc_mesh_set_threads(mesh, n_threads) bind(C, name="hoc_mesh_set_threads") result(status)
+      import :: c_int, c_ptr
+      type(c_ptr), value :: mesh
+      integer(c_int), value :: n_threads
+      integer(c_int) :: status
+    end function hoc_mesh_set_threads
+
+    function hoc_mesh_set_order(mesh, order, spacing) bind(C, name="hoc_mesh_set_order") result(status)
+      import :: c_int, c_ptr
+      type(c_ptr), value :: mesh
+      integer(c_int), value :: order, spacing
+      integer(c_int) :: status
+    end function hoc_mesh_set_order
+
+    function hoc_mesh_set_material(mesh, model, young, poisson) &
+        bind(C, name="hoc_mesh_set_material") result(status)
+      import :: c_int, c_ptr, c_double
+      type(c_ptr), value :: mesh
+      integer(c_int), value :: model
+      real(c_double), value :: young, poisson
+      integer(c_int) :: status
+    end function hoc_mesh_set_material
+
+    function hoc_mesh_set_formulation(mesh, formulation) &
+        bind(C, name="hoc_mesh_set_formulation") result(status)
+      import :: c_int, c_ptr
+      type(c_ptr), value :: mesh
+      integer(c_int), value :: formulation
+      integer(c_int) :: status
+    end function hoc_mesh_set_formulation
+
+    function hoc_mesh_run_increments(mesh, increments) &
+        bind(C, name="hoc_mesh_run_increments") result(status)
+      import :: c_int, c_ptr
+      type(c_ptr), value :: mesh
+      integer(c_int), value :: increments
+      integer(c_int) :: status
+    end function hoc_mesh_run_increments
+
+    function hoc_mesh_quality(mesh, quality) bind(C, name="hoc_mesh_quality") result(status)
+      import :: c_int, c_ptr, hoc_quality
+      type(c_ptr), value :: mesh
+      type(hoc_quality), intent(out) :: quality
+      integer(c_int) :: status
+    end function hoc_mesh_quality
+
+    function hoc_mesh_cell_quality(mesh, measure, n, values) &
+        bind(C, name="hoc_mesh_cell_quality") result(status)
+      import :: c_int, c_ptr, c_size_t, c_double
+      type(c_ptr), value :: mesh
+      integer(c_int), value :: measure
+      integer(c_size_t), value :: n
+      real(c_double), intent(out) :: values(*)
+      integer(c_int) :: status
+    end function hoc_mesh_cell_quality
+
+    function hoc_mesh_node_count(mesh, n_nodes) bind(C, name="hoc_mesh_node_count") result(status)
+      import :: c_int, c_ptr, c_size_t
+      type(c_ptr), value :: mesh
+      integer(c_size_t), intent(out) :: n_nodes
+      integer(c_int) :: status
+    end function hoc_mesh_node_count
+
+    function hoc_mesh_cell_count(mesh, n_cells, nodes_per_cell) &
+        bind(C, name="hoc_mesh_cell_count") result(status)
+      import :: c_int, c_ptr, c_size_t
+      type(c_ptr), value :: mesh
+      integer(c_size_t), intent(out) :: n_cells, nodes_per_cell
+      integer(c_int) :: status
+    end function hoc_mesh_cell_count
+
+    function hoc_mesh_get_nodes(mesh, n_nodes, coords) bind(C, name="hoc_mesh_get_nodes") result(status)
+      import :: c_int, c_ptr, c_size_t, c_double
+      type(c_ptr), value :: mesh
+      integer(c_size_t), value :: n_nodes
+      real(c_double), intent(out) :: coords(*)
+      integer(c_int) :: status
+    end function hoc_mesh_get_nodes
+
+    function hoc_mesh_get_cells(mesh, ordering, len, cells) bind(C, name="hoc_mesh_get_cells") result(status)
+      import :: c_int, c_ptr, c_size_t, c_int64_t
+      type(c_ptr), value :: mesh
+      integer(c_int), value :: ordering
+      integer(c_size_t), value :: len
+      integer(c_int64_t), intent(out) :: cells(*)
+      integer(c_int) :: status
+    end function hoc_mesh_get_cells
+
+    !> path: a NUL-terminated string, e.g. "out.msh"//c_null_char.
+    function hoc_mesh_write(mesh, path) bind(C, name="hoc_mesh_write") result(status)
+      import :: c_int, c_ptr, c_char
+      type(c_ptr), value :: mesh
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int) :: status
+    end function hoc_mesh_write
+
+    function hoc_mesh_last_error(mesh) bind(C, name="hoc_mesh_last_error") result(message)
+      import :: c_ptr
+      type(c_ptr), value :: mesh
+      type(c_ptr) :: message
+    end function hoc_mesh_last_error
+
+    function hoc_status_string(status) bind(C, name="hoc_status_string") result(message)
+      import :: c_ptr, c_int
+      integer(c_int), value :: status
+      type(c_ptr) :: message
+    end function hoc_status_string
+
+    function hoc_version() bind(C, name="hoc_version") result(version)
+      import :: c_ptr
+      type(c_ptr) :: version
+    end function hoc_version
+
+    function hoc_c_strlen(s) bind(C, name="strlen") result(n)
+      import :: c_ptr, c_size_t
+      type(c_ptr), value :: s
+      integer(c_size_t) :: n
+    end function hoc_c_strlen
+  end interface
+
+  public :: hoc_mesh_create, hoc_mesh_destroy, hoc_mesh_set_boundary, hoc_mesh_set_feature_edges, &
+            hoc_mesh_set_projector, hoc_mesh_set_progress, hoc_mesh_set_threads, hoc_mesh_set_order, &
+            hoc_mesh_set_material, hoc_mesh_set_formulation, hoc_mesh_run_increments, &
+            hoc_mesh_quality, hoc_mesh_cell_quality, hoc_mesh_node_count, hoc_mesh_cell_count, &
+            hoc_mesh_get_nodes, hoc_mesh_get_cells, hoc_mesh_write, hoc_mesh_last_error, &
+            hoc_status_string, hoc_version, hoc_string
+
+contains
+
+  !> A C string (NUL-terminated, e.g. from hoc_mesh_last_error) as a Fortran string; "" for NULL.
+  function hoc_string(cstr) result(str)
+    type(c_ptr), intent(in) :: cstr
+    character(len=:), allocatable :: str
+    character(kind=c_char), pointer :: chars(:)
+    integer(c_size_t) :: n, i
+    if (.not. c_associated(cstr)) then
+      str = ""
+      return
+    end if
+    n = hoc_c_strlen(cstr)
+    call c_f_pointer(cstr, chars, [n])
+    allocate (character(len=n) :: str)
+    do i = 1, n
+      str(i:i) = chars(i)
+    end do
+  end function hoc_string
+
+end module hocurve

@@ -1,0 +1,261 @@
+/**
+ * @file hocurve.hpp
+ * @brief Header-only C++17 wrapper over the hocurve C ABI (hocurve.h).
+ *
+ * - hocurve::Mesh owns one HocMesh* (move-only, destroyed in the destructor).
+ * - Every method mirrors one hoc_mesh_* function and throws hocurve::Error
+ *   (a std::runtime_error carrying the HocStatus and the handle's last-error
+ *   message) when the status is not HOC_OK.
+ * - The projector and progress callbacks are std::function objects; the mesh
+ *   keeps them alive at a stable address and hands that address to the C ABI
+ *   as user_data. An exception thrown by a callback never crosses into the
+ *   library: it stops the run, and run_increments() rethrows it.
+ *
+ * @code
+ *   hocurve::Mesh mesh(3, coords, cells);          // coords: n*3, cells: m*4
+ *   mesh.set_boundary(facets, tags);
+ *   mesh.set_projector([](int dim, int tag, std::size_t n, const double *in, double *out) {
+ *     ...; return 0;
+ *   });
+ *   mesh.set_order(4);
+ *   mesh.run_increments(1);
+ *   HocQuality q = mesh.quality();
+ * @endcode
+ */
+#ifndef HOCURVE_HPP
+#define HOCURVE_HPP
+
+#include "hocurve.h"
+
+#include <cstddef>
+#include <cstdint>
+#include <exception>
+#include <functional>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace hocurve {
+
+/** A failed hocurve call: the status and the library's message. */
+class Error : public std::runtime_error {
+ public:
+  Error(HocStatus status, const std::string &message)
+      : std::runtime_error(compose(status, message)), status_(status), message_(message) {}
+  /** The HocStatus the C function returned. */
+  HocStatus status() const noexcept { return status_; }
+  /** The handle's last-error message at the time of the failure (may be empty). */
+  const std::string &message() const noexcept { return message_; }
+
+ private:
+  static std::string compose(HocStatus status, const std::string &message) {
+    const char *s = hoc_status_string(status);
+    std::string what = s ? s : "unknown status";
+    if (!message.empty()) what += ": " + message;
+    return what;
+  }
+  HocStatus status_;
+  std::string message_;
+};
+
+/** Projects n points (n*dim coordinates) onto entity (dim, tag); 0 = success. */
+using Projector =
+    std::function<int(int entity_dim, int entity_tag, std::size_t n, const double *in, double *out)>;
+/** Called during a run; return 0 to continue, nonzero to cancel. */
+using Progress = std::function<int(int stage, int step, int total)>;
+
+/** The library's version string. */
+inline std::string version() { return hoc_version(); }
+
+/** Throws Error(status, message) unless status is HOC_OK. */
+inline void check(HocStatus status, const HocMesh *mesh) {
+  if (status == HOC_OK) return;
+  const char *msg = mesh ? hoc_mesh_last_error(mesh) : nullptr;
+  throw Error(status, msg ? msg : "");
+}
+
+namespace detail {
+// Callback state lives behind a unique_ptr so its address survives moves of Mesh.
+struct Callbacks {
+  Projector projector;
+  Progress progress;
+  std::exception_ptr pending;  // first exception a callback threw during a run
+
+  static int project(void *user, int dim, int tag, std::size_t n, const double *in, double *out) {
+    auto *self = static_cast<Callbacks *>(user);
+    try {
+      return self->projector(dim, tag, n, in, out);
+    } catch (...) {
+      if (!self->pending) self->pending = std::current_exception();
+      return -1;
+    }
+  }
+  static int progress_cb(void *user, int stage, int step, int total) {
+    auto *self = static_cast<Callbacks *>(user);
+    try {
+      return self->progress(stage, step, total);
+    } catch (...) {
+      if (!self->pending) self->pending = std::current_exception();
+      return 1;
+    }
+  }
+};
+}  // namespace detail
+
+/** A mesh handle: the linear mesh, its settings, and after a run, the curved mesh. */
+class Mesh {
+ public:
+  /** Wraps hoc_mesh_create: n_vertices*dim coordinates, n_cells*(dim+1) vertex ids. */
+  Mesh(int dim, std::size_t n_vertices, const double *coords, std::size_t n_cells,
+       const int64_t *cells)
+      : dim_(dim), callbacks_(new detail::Callbacks) {
+    HocMesh *out = nullptr;
+    HocStatus st = hoc_mesh_create(dim, n_vertices, coords, n_cells, cells, &out);
+    if (st != HOC_OK) {
+      // The message of a failed create is kept per thread: hoc_mesh_last_error(NULL).
+      const char *msg = hoc_mesh_last_error(out);
+      std::string m = msg ? msg : "";
+      hoc_mesh_destroy(&out);
+      throw Error(st, m);
+    }
+    mesh_ = out;
+  }
+  /** Same, from vectors; the counts follow from the sizes. */
+  Mesh(int dim, const std::vector<double> &coords, const std::vector<int64_t> &cells)
+      : Mesh(dim, dim > 0 ? coords.size() / static_cast<std::size_t>(dim) : 0, coords.data(),
+             dim > 0 ? cells.size() / static_cast<std::size_t>(dim + 1) : 0, cells.data()) {}
+
+  ~Mesh() { hoc_mesh_destroy(&mesh_); }
+  Mesh(const Mesh &) = delete;
+  Mesh &operator=(const Mesh &) = delete;
+  Mesh(Mesh &&other) noexcept
+      : mesh_(std::exchange(other.mesh_, nullptr)),
+        dim_(other.dim_),
+        callbacks_(std::move(other.callbacks_)) {}
+  Mesh &operator=(Mesh &&other) noexcept {
+    if (this != &other) {
+      hoc_mesh_destroy(&mesh_);
+      mesh_ = std::exchange(other.mesh_, nullptr);
+      dim_ = other.dim_;
+      callbacks_ = std::move(other.callbacks_);
+    }
+    return *this;
+  }
+
+  /** The C handle (still owned by this object). */
+  HocMesh *get() const noexcept { return mesh_; }
+  /** Spatial dimension (2 or 3). */
+  int dim() const noexcept { return dim_; }
+  /** The handle's last-error message ("" if none). */
+  std::string last_error() const {
+    const char *m = hoc_mesh_last_error(mesh_);
+    return m ? m : "";
+  }
+
+  void set_boundary(std::size_t n_facets, const int64_t *facets, const int32_t *tags) {
+    check(hoc_mesh_set_boundary(mesh_, n_facets, facets, tags), mesh_);
+  }
+  /** facets: n*dim vertex ids, tags: n entity tags. */
+  void set_boundary(const std::vector<int64_t> &facets, const std::vector<int32_t> &tags) {
+    set_boundary(tags.size(), facets.data(), tags.data());
+  }
+  void set_feature_edges(std::size_t n_edges, const int64_t *edges, const int32_t *tags) {
+    check(hoc_mesh_set_feature_edges(mesh_, n_edges, edges, tags), mesh_);
+  }
+  /** edges: n*2 vertex ids, tags: n curve tags (3D). */
+  void set_feature_edges(const std::vector<int64_t> &edges, const std::vector<int32_t> &tags) {
+    set_feature_edges(tags.size(), edges.data(), tags.data());
+  }
+  /** Sets (or, with an empty function, clears) the projector. */
+  void set_projector(Projector fn) {
+    ensure_callbacks();
+    callbacks_->projector = std::move(fn);
+    if (callbacks_->projector)
+      check(hoc_mesh_set_projector(mesh_, &detail::Callbacks::project, callbacks_.get()), mesh_);
+    else
+      check(hoc_mesh_set_projector(mesh_, nullptr, nullptr), mesh_);
+  }
+  /** Sets (or, with an empty function, clears) the progress callback. */
+  void set_progress(Progress fn) {
+    ensure_callbacks();
+    callbacks_->progress = std::move(fn);
+    if (callbacks_->progress)
+      check(hoc_mesh_set_progress(mesh_, &detail::Callbacks::progress_cb, callbacks_.get()), mesh_);
+    else
+      check(hoc_mesh_set_progress(mesh_, nullptr, nullptr), mesh_);
+  }
+  /** 0 = all cores. */
+  void set_threads(int n_threads) { check(hoc_mesh_set_threads(mesh_, n_threads), mesh_); }
+  void set_order(int order, HocNodeSpacing spacing = HOC_SPACING_OPTIMAL) {
+    check(hoc_mesh_set_order(mesh_, order, spacing), mesh_);
+  }
+  void set_material(HocMaterial model, double young, double poisson) {
+    check(hoc_mesh_set_material(mesh_, model, young, poisson), mesh_);
+  }
+  void set_formulation(HocFormulation formulation) {
+    check(hoc_mesh_set_formulation(mesh_, formulation), mesh_);
+  }
+  /** Curves the mesh. On failure the mesh is as before, and a callback's exception is rethrown. */
+  void run_increments(int increments = 1) {
+    if (callbacks_) callbacks_->pending = nullptr;
+    HocStatus st = hoc_mesh_run_increments(mesh_, increments);
+    if (st != HOC_OK && callbacks_ && callbacks_->pending) {
+      std::exception_ptr e = std::exchange(callbacks_->pending, nullptr);
+      std::rethrow_exception(e);
+    }
+    check(st, mesh_);
+  }
+
+  HocQuality quality() const {
+    HocQuality q{};
+    check(hoc_mesh_quality(mesh_, &q), mesh_);
+    return q;
+  }
+  /** Per-cell quality, measure 1..3. */
+  std::vector<double> cell_quality(int measure) const {
+    std::vector<double> q(cell_count().first);
+    check(hoc_mesh_cell_quality(mesh_, measure, q.size(), q.data()), mesh_);
+    return q;
+  }
+  std::size_t node_count() const {
+    std::size_t n = 0;
+    check(hoc_mesh_node_count(mesh_, &n), mesh_);
+    return n;
+  }
+  /** (number of cells, nodes per cell). */
+  std::pair<std::size_t, std::size_t> cell_count() const {
+    std::size_t n = 0, per = 0;
+    check(hoc_mesh_cell_count(mesh_, &n, &per), mesh_);
+    return {n, per};
+  }
+  /** node_count()*dim coordinates, interleaved. */
+  std::vector<double> nodes() const {
+    std::size_t n = node_count();
+    std::vector<double> x(n * static_cast<std::size_t>(dim_));
+    check(hoc_mesh_get_nodes(mesh_, n, x.data()), mesh_);
+    return x;
+  }
+  /** n_cells*nodes_per_cell node ids in the given ordering. */
+  std::vector<int64_t> cells(HocNodeOrdering ordering = HOC_ORDERING_NATIVE) const {
+    auto c = cell_count();
+    std::vector<int64_t> ids(c.first * c.second);
+    check(hoc_mesh_get_cells(mesh_, ordering, ids.size(), ids.data()), mesh_);
+    return ids;
+  }
+  /** Writes .msh or .vtu by extension. */
+  void write(const std::string &path) const { check(hoc_mesh_write(mesh_, path.c_str()), mesh_); }
+
+ private:
+  void ensure_callbacks() {
+    if (!callbacks_) callbacks_.reset(new detail::Callbacks);
+  }
+  HocMesh *mesh_ = nullptr;
+  int dim_ = 0;
+  std::unique_ptr<detail::Callbacks> callbacks_;
+};
+
+}  // namespace hocurve
+
+#endif  // HOCURVE_HPP

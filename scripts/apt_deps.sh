@@ -1,0 +1,16 @@
+#!/usr/bin/env bash
+# System packages for the C/C++/Fortran tests (scripts/test_c.sh): compilers,
+# CMake, valgrind, and the mesh generators the test fixtures use (TetGen, CGAL).
+set -euo pipefail
+packages=(cmake g++ gfortran pkg-config valgrind patchelf
+  tetgen libtet1.5-dev libcgal-dev libgmp-dev libmpfr-dev libboost-dev)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  sudo=""
+  [ "$(id -u)" -eq 0 ] || sudo="sudo"
+  $sudo apt-get update
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y --no-install-recommends "${missing[@]}"
+fi

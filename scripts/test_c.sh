@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# The C/C++/Fortran side of the test suite: install hocurve into a temporary
+# prefix (scripts/install.sh), build c_tests/ against it with find_package as a
+# user would, run ctest, check pkg-config, then run the tests under valgrind.
+#
+# Usage: scripts/test_c.sh            (HOCURVE_SKIP_MEMCHECK=1 skips valgrind)
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+work=$(mktemp -d "${TMPDIR:-/tmp}/hocurve-c.XXXXXX")
+trap 'rm -rf "$work"' EXIT
+prefix=$work/prefix
+build=$work/build
+jobs=$(nproc 2>/dev/null || echo 2)
+
+"$root/scripts/install.sh" "$prefix"
+
+memcheck=ON
+[ "${HOCURVE_SKIP_MEMCHECK:-0}" = 1 ] && memcheck=OFF
+cmake -S "$root/c_tests" -B "$build" -DCMAKE_PREFIX_PATH="$prefix" -DHOCURVE_TESTS_VALGRIND=$memcheck
+cmake --build "$build" -j "$jobs"
+
+# pkg-config gives what a Makefile user needs.
+PKG_CONFIG_PATH=$prefix/lib/pkgconfig \
+  cc "$root/c_tests/t000-version.c" -I"$root/c_tests" $(PKG_CONFIG_PATH=$prefix/lib/pkgconfig pkg-config --cflags --libs hocurve) \
+  -Wl,-rpath,"$prefix/lib" -o "$work/t000-pkgconfig"
+"$work/t000-pkgconfig" >/dev/null
+echo "pkg-config build of t000-version: ok"
+
+ctest --test-dir "$build" -L api -j "$jobs" --output-on-failure
+if [ $memcheck = ON ]; then
+  ctest --test-dir "$build" -L memcheck -j "$jobs" --output-on-failure
+fi
