@@ -1,10 +1,14 @@
 #!/usr/bin/env bash
 # The project's whole test run (the README's test command, and CI's):
+#   0. system packages (scripts/apt_deps.sh; needs root or sudo, skipped when present)
 #   1. cargo build --release     (the binary the Python suite drives)
-#   2. cargo test --release      (unit, integration and doc tests)
+#   2. cargo test --release      (unit, integration and doc tests, header check)
 #   3. pytest -q tests/python    (end-to-end: gmsh, meshio and VTK read what
 #                                 hocurve writes; quality agrees with gmsh)
-# Steps 2 and 3 both run even if one fails; the exit status is non-zero if
+#   4. scripts/test_c.sh         (install into a temp prefix; C, C++, Fortran
+#                                 tests on TetGen/CGAL meshes via find_package;
+#                                 ctest, then the same under valgrind)
+# Steps 2-4 all run even if one fails; the exit status is non-zero if
 # anything failed. The Python venv is made (or reused) by setup_python.sh.
 set -uo pipefail
 
@@ -14,6 +18,12 @@ venv="${HOCURVE_VENV:-$repo/.venv}"
 export HOCURVE_VENV="$venv"
 
 step() { printf '\n==> %s\n' "$*"; }
+
+step "system packages"
+if ! "$repo/scripts/apt_deps.sh"; then
+    echo "test_all: scripts/apt_deps.sh failed (run it as root once)" >&2
+    exit 1
+fi
 
 step "cargo build --release"
 if ! cargo build --release; then
@@ -39,7 +49,12 @@ if [ "$py_rc" -eq 5 ]; then
     echo "test_all: pytest collected no tests" >&2
 fi
 
+step "C, C++ and Fortran tests (scripts/test_c.sh)"
+"$repo/scripts/test_c.sh"
+c_rc=$?
+
 step "summary"
 echo "cargo test: $([ $cargo_rc -eq 0 ] && echo ok || echo "FAILED (exit $cargo_rc)")"
 echo "pytest:     $([ $py_rc -eq 0 ] && echo ok || echo "FAILED (exit $py_rc)")"
-[ "$cargo_rc" -eq 0 ] && [ "$py_rc" -eq 0 ]
+echo "C tests:    $([ $c_rc -eq 0 ] && echo ok || echo "FAILED (exit $c_rc)")"
+[ "$cargo_rc" -eq 0 ] && [ "$py_rc" -eq 0 ] && [ "$c_rc" -eq 0 ]
