@@ -172,6 +172,22 @@ pub fn validate_options(opts: &CurveOptions) -> Result<LinearElastic> {
     if opts.increments == 0 {
         return Err(Error::InvalidInput("the number of increments must be at least 1".into()));
     }
+    if !(opts.tolerance.is_finite() && opts.tolerance > 0.0) || opts.max_iterations == 0 {
+        return Err(Error::InvalidInput(format!(
+            "Newton tolerance must be positive and iterations at least 1 (got {}, {})",
+            opts.tolerance, opts.max_iterations
+        )));
+    }
+    let hyperelastic =
+        !matches!(opts.material, MaterialModel::LinearElastic | MaterialModel::TransverselyIsotropicLinear);
+    if matches!(opts.formulation, Formulation::Iil | Formulation::Cil | Formulation::Nonlinear) && !hyperelastic {
+        return Err(Error::InvalidInput(format!(
+            "formulation {} needs a hyperelastic material (neo-hookean, mooney-rivlin, ni-mooney-rivlin or \
+             transversely-isotropic), not '{}'",
+            opts.formulation.name(),
+            opts.material.name()
+        )));
+    }
     LinearElastic::try_from_young_poisson(opts.young, opts.poisson)
 }
 

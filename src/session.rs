@@ -125,10 +125,12 @@ impl Session {
         self.reset(self.linear.clone(), opts)
     }
 
+    /// Material model and constants (E > 0, 0 ≤ ν < 0.5). Whether the model
+    /// suits the formulation is checked at the next run, so the two may be
+    /// set in any order.
     pub fn set_material(&mut self, model: MaterialModel, young: f64, poisson: f64) -> Result<()> {
-        let opts = CurveOptions { material: model, young, poisson, ..self.opts.clone() };
-        validate_options(&opts)?;
-        self.opts = opts;
+        crate::material::make_material(model, young, poisson)?;
+        self.opts = CurveOptions { material: model, young, poisson, ..self.opts.clone() };
         Ok(())
     }
 
@@ -140,9 +142,13 @@ impl Session {
 
     /// Newton–Raphson tolerance on ‖R‖/‖R₀‖ and iteration limit per increment.
     pub fn set_newton(&mut self, tolerance: f64, max_iterations: usize) -> Result<()> {
-        let opts = CurveOptions { tolerance, max_iterations, ..self.opts.clone() };
-        validate_options(&opts)?;
-        self.opts = opts;
+        if !(tolerance.is_finite() && tolerance > 0.0) || max_iterations == 0 {
+            return Err(Error::InvalidInput(format!(
+                "Newton tolerance must be positive and iterations at least 1 (got {tolerance}, {max_iterations})"
+            )));
+        }
+        self.opts.tolerance = tolerance;
+        self.opts.max_iterations = max_iterations;
         Ok(())
     }
 

@@ -1,7 +1,9 @@
 //! Transversely isotropic hyperelastic model of Bonet & Burton (paper Table 2,
 //! SPEC §3), fibre direction N:
+//! ```text
 //! Ψ = α(I1 − 3) + β(I2 − 3) − μ̃ ln J + λ/2 (J − 1)² + η1(I4 − 1)
 //!   + η2(I1 − 3)(I4 − 1) + γ(I4 − 1)² − η1/2 (I5 − 1),
+//! ```
 //! with I4 = FN·FN and I5 = FᵀFN·FᵀFN.
 //!
 //! # Derivation
