@@ -127,7 +127,7 @@ pub(crate) fn samples(seed: u64) -> Vec<(Mat3, [f64; 3])> {
     let mut rng = Rng::new(seed);
     [false, true]
         .into_iter()
-        .flat_map(|plane| std::iter::repeat(plane).take(5))
+        .flat_map(|plane| std::iter::repeat_n(plane, 5))
         .map(|plane| (random_f(&mut rng, plane), random_unit(&mut rng, plane)))
         .collect()
 }

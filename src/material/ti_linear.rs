@@ -13,9 +13,11 @@
 //! 1 − ν − 2ν_A² E/E_A = 1 − ν − 0.8ν² > 0.)
 //!
 //! For a unit axis N and A = N⊗N the stiffness is
+//! ```text
 //! c = C12 I⊗I + C66 𝓘 + (C13 − C12)(I⊗A + A⊗I)
 //!   + (C44 − C66)(δ_ik A_jl + δ_il A_jk + A_ik δ_jl + A_il δ_jk)
 //!   + (C33 + C12 + 2C66 − 2C13 − 4C44) A⊗A,
+//! ```
 //! which for N = e3 gives c_1111 = C12 + 2C66 = C11, c_1122 = C12, c_1133 = C13,
 //! c_3333 = C33, c_2323 = C44 = G_A, c_1212 = C66.
 

@@ -1,7 +1,9 @@
 //! Transversely isotropic hyperelastic model of Bonet & Burton (paper Table 2,
 //! SPEC §3), fibre direction N:
+//! ```text
 //! Ψ = α(I1 − 3) + β(I2 − 3) − μ̃ ln J + λ/2 (J − 1)² + η1(I4 − 1)
 //!   + η2(I1 − 3)(I4 − 1) + γ(I4 − 1)² − η1/2 (I5 − 1),
+//! ```
 //! with I4 = FN·FN and I5 = FᵀFN·FᵀFN.
 //!
 //! # Derivation
@@ -10,12 +12,14 @@
 //! Ψ_4 = η1 + η2(I1 − 3) + 2γ(I4 − 1), Ψ_5 = −η1/2;
 //! Ψ_JJ = λ + μ̃/J², Ψ_14 = η2, Ψ_44 = 2γ (all others zero). Hence
 //!
+//! ```text
 //! σ = (2/J)[(α + η2(I4 − 1)) b + β(I1 b − b²) + (η1 + η2(I1 − 3) + 2γ(I4 − 1)) a⊗a
 //!     − (η1/2)(a⊗ba + ba⊗a)] + (λ(J − 1) − μ̃/J) I,
 //!
 //! c_ijkl = (2β/J)(2 b_ij b_kl − b_ik b_jl − b_il b_jk) + λ(2J − 1) δ_ij δ_kl
 //!        + (μ̃/J − λ(J − 1)) 𝓘_ijkl + (4η2/J)(b_ij a_k a_l + a_i a_j b_kl)
 //!        + (8γ/J) a_i a_j a_k a_l − (η1/J)(b_ik a_j a_l + b_jk a_i a_l + b_il a_j a_k + b_jl a_i a_k).
+//! ```
 //!
 //! # Calibration (SPEC §3)
 //! At F = I (N = e3): σ = 0 iff μ̃ = 2α + 4β; C11 = 4α + 8β + λ, C12 = 4β + λ,
