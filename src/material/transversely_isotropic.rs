@@ -27,10 +27,20 @@
 //! C66 = 2α + 2β. With α = β = C66/4 (= E/(8(1+ν))): λ = C11 − 12α,
 //! η1 = 4α − G_A, 4η2 = C13 − 4α − λ, 8γ = C33 − 12α + 4η1 − 8η2 − λ, where the
 //! C's invert the TI compliance ([`super::TiEngineeringConstants::try_stiffness`]).
-//! For the paper's E_A = 5E/2, ν_A = ν, G_A = E/2: η1 = E/(2(1+ν)) − E/2 ≤ 0
-//! (zero at ν = 0), and λ < 0 for small ν (e.g. ν = 0.001); these signs are
-//! legitimate (the linearisation is exactly the positive definite TI tensor),
-//! but Ψ is not polyconvex (paper section 6).
+//! For the paper's E_A = 5E/2, ν_A = ν, G_A = E/2 (E = 1):
+//!
+//! | ν | α = β | λ | η1 | η2 | γ |
+//! |---|---|---|---|---|---|
+//! | 0.001 | 0.1249 | −0.4985 | −0.0005 | +0.0000 | +0.1873 |
+//! | 0.3 | 0.0962 | +0.0269 | −0.1154 | +0.0165 | +0.1265 |
+//! | 0.495 | 0.0836 | +0.9493 | −0.1656 | +0.0796 | +0.1043 |
+//!
+//! η1 = E/(2(1+ν)) − E/2 ≤ 0 always, and **λ < 0 for ν < 0.2888**. The
+//! linearisation is still exactly the positive definite TI tensor, so small
+//! strains are fine, but with λ < 0 the volumetric term λ/2 (J − 1)² is
+//! concave: Ψ_JJ = λ + μ̃/J² turns negative for J > √(μ̃/|λ|) (≈ 1.22 at
+//! ν → 0) and Ψ → −∞ as J → ∞. Together with the non-polyconvex I5 term
+//! (paper section 6) the model can lose ellipticity at large deformation.
 
 use super::invariants::{
     invariant_stress, invariant_stress_and_tangent, InvariantEnergy, Invariants, I1, I2, I4, I5,
