@@ -219,6 +219,15 @@ mod tests {
     }
 
     #[test]
+    fn transversely_isotropic_lambda_is_negative_below_nu_0_2888() {
+        assert!(model(0.001).0.lambda < 0.0 && model(0.288).0.lambda < 0.0);
+        assert!(model(0.2889).0.lambda > 0.0 && model(0.495).0.lambda > 0.0);
+        for nu in POISSON_SWEEP {
+            assert!(model(nu).0.eta1 <= 0.0 && model(nu).0.gamma > 0.0);
+        }
+    }
+
+    #[test]
     fn transversely_isotropic_stress_matches_the_papers_closed_form() {
         let m = model(0.3).0;
         for (f, n) in samples(66) {
