@@ -27,12 +27,14 @@
 //! fourth-order terms δ_IK ↦ b_ik, C⁻¹_IK ↦ δ_ik. Hence, with
 //! G_1 = b, G_2 = I1 b − b², G_J = ½J I, G_4 = a⊗a, G_5 = a⊗ba + ba⊗a:
 //!
+//! ```text
 //! σ = (2/J) Σ_a Ψ_a G_a,
 //!
 //! c_ijkl = (4/J) [ Σ_ab Ψ_ab (G_a)_ij (G_b)_kl
 //!        + Ψ_2 (b_ij b_kl − ½(b_ik b_jl + b_il b_jk))
 //!        + Ψ_J ¼J (δ_ij δ_kl − δ_ik δ_jl − δ_il δ_jk)
 //!        + Ψ_5 ½(b_ik a_j a_l + b_jk a_i a_l + b_il a_j a_k + b_jl a_i a_k) ].
+//! ```
 //!
 //! At F = I a model is stress-free iff Ψ_1 + 2Ψ_2 + ½Ψ_J = 0 (isotropic part),
 //! and its isotropic tangent then has μ = 2Ψ_1 + 2Ψ_2,

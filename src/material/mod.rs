@@ -85,7 +85,7 @@ pub type Tangent = [[[[f64; 3]; 3]; 3]; 3];
 
 /// A hyperelastic (or linear) constitutive model evaluated pointwise.
 ///
-/// F is always 3×3 (2D plane strain: F = [[F11,F12,0],[F21,F22,0],[0,0,1]]),
+/// F is always 3×3 (2D plane strain: `F = [[F11, F12, 0], [F21, F22, 0], [0, 0, 1]]`),
 /// det F > 0. `fibre` is the unit material fibre direction N (ignored by the
 /// isotropic models).
 pub trait Material: Send + Sync + std::fmt::Debug {

@@ -10,8 +10,10 @@
 //!   Ψ_11 = Ψ_12 = 0.
 //!
 //! With g = HHᵀ = I2 I − I1 b + b² (Cayley–Hamilton) the stress reads
+//! ```text
 //! σ = 2α J^(−5/3) b − 3β J^(−3) (tr g)^(1/2) g
 //!     + (κ(J − 1) − (2α/3) J^(−5/3) tr b + β J^(−3) (tr g)^(3/2)) I,
+//! ```
 //! which agrees with the paper's printed σ; its printed c is garbled and is
 //! replaced by the general formula (checked against finite differences).
 //!

@@ -12,12 +12,14 @@
 //! Ψ_4 = η1 + η2(I1 − 3) + 2γ(I4 − 1), Ψ_5 = −η1/2;
 //! Ψ_JJ = λ + μ̃/J², Ψ_14 = η2, Ψ_44 = 2γ (all others zero). Hence
 //!
+//! ```text
 //! σ = (2/J)[(α + η2(I4 − 1)) b + β(I1 b − b²) + (η1 + η2(I1 − 3) + 2γ(I4 − 1)) a⊗a
 //!     − (η1/2)(a⊗ba + ba⊗a)] + (λ(J − 1) − μ̃/J) I,
 //!
 //! c_ijkl = (2β/J)(2 b_ij b_kl − b_ik b_jl − b_il b_jk) + λ(2J − 1) δ_ij δ_kl
 //!        + (μ̃/J − λ(J − 1)) 𝓘_ijkl + (4η2/J)(b_ij a_k a_l + a_i a_j b_kl)
 //!        + (8γ/J) a_i a_j a_k a_l − (η1/J)(b_ik a_j a_l + b_jk a_i a_l + b_il a_j a_k + b_jl a_i a_k).
+//! ```
 //!
 //! # Calibration (SPEC §3)
 //! At F = I (N = e3): σ = 0 iff μ̃ = 2α + 4β; C11 = 4α + 8β + λ, C12 = 4β + λ,
@@ -25,10 +27,20 @@
 //! C66 = 2α + 2β. With α = β = C66/4 (= E/(8(1+ν))): λ = C11 − 12α,
 //! η1 = 4α − G_A, 4η2 = C13 − 4α − λ, 8γ = C33 − 12α + 4η1 − 8η2 − λ, where the
 //! C's invert the TI compliance ([`super::TiEngineeringConstants::try_stiffness`]).
-//! For the paper's E_A = 5E/2, ν_A = ν, G_A = E/2: η1 = E/(2(1+ν)) − E/2 ≤ 0
-//! (zero at ν = 0), and λ < 0 for small ν (e.g. ν = 0.001); these signs are
-//! legitimate (the linearisation is exactly the positive definite TI tensor),
-//! but Ψ is not polyconvex (paper section 6).
+//! For the paper's E_A = 5E/2, ν_A = ν, G_A = E/2 (E = 1):
+//!
+//! | ν | α = β | λ | η1 | η2 | γ |
+//! |---|---|---|---|---|---|
+//! | 0.001 | 0.1249 | −0.4985 | −0.0005 | +0.0000 | +0.1873 |
+//! | 0.3 | 0.0962 | +0.0269 | −0.1154 | +0.0165 | +0.1265 |
+//! | 0.495 | 0.0836 | +0.9493 | −0.1656 | +0.0796 | +0.1043 |
+//!
+//! η1 = E/(2(1+ν)) − E/2 ≤ 0 always, and **λ < 0 for ν < 0.2888**. The
+//! linearisation is still exactly the positive definite TI tensor, so small
+//! strains are fine, but with λ < 0 the volumetric term λ/2 (J − 1)² is
+//! concave: Ψ_JJ = λ + μ̃/J² turns negative for J > √(μ̃/|λ|) (≈ 1.22 at
+//! ν → 0) and Ψ → −∞ as J → ∞. Together with the non-polyconvex I5 term
+//! (paper section 6) the model can lose ellipticity at large deformation.
 
 use super::invariants::{
     invariant_stress, invariant_stress_and_tangent, InvariantEnergy, Invariants, I1, I2, I4, I5, JAC,
@@ -180,6 +192,15 @@ mod tests {
             assert!((4.0 * m.eta2 - (s.c13 - 4.0 * m.alpha - m.lambda)).abs() < 1e-13 * s.c11);
             let g8 = s.c33 - 12.0 * m.alpha + 4.0 * m.eta1 - 8.0 * m.eta2 - m.lambda;
             assert!((8.0 * m.gamma - g8).abs() < 1e-13 * s.c33);
+        }
+    }
+
+    #[test]
+    fn transversely_isotropic_lambda_is_negative_below_nu_0_2888() {
+        assert!(model(0.001).0.lambda < 0.0 && model(0.288).0.lambda < 0.0);
+        assert!(model(0.2889).0.lambda > 0.0 && model(0.495).0.lambda > 0.0);
+        for nu in POISSON_SWEEP {
+            assert!(model(nu).0.eta1 <= 0.0 && model(nu).0.gamma > 0.0);
         }
     }
 
