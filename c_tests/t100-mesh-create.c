@@ -20,10 +20,10 @@ static const char *message(const HocMesh *mesh) {
 static void expect_(int line, const char *what, HocStatus st, const HocMesh *mesh, const HocStatus *allowed) {
   int ok = 0;
   for (const HocStatus *a = allowed; *a != HOC_OK; ++a) ok |= st == *a;
+  /* Without a handle (a failed create, a NULL handle) the message is the calling
+   * thread's, from hoc_mesh_last_error(NULL): required all the same. */
   const char *m = message(mesh);
-  /* Without a handle there is nowhere to keep a message: hoc_mesh_last_error(NULL)
-   * is "" by contract, so a message is required only when there is a handle. */
-  if (!ok || (mesh && !*m)) {
+  if (!ok || !*m) {
     fprintf(stderr, "t100:%d: %s: got %d (%s), message \"%s\"; expected", line, what, st,
             hoc_status_string(st), m);
     for (const HocStatus *a = allowed; *a != HOC_OK; ++a) fprintf(stderr, " %d", *a);
@@ -166,6 +166,8 @@ int main(void) {
   EXPECT("set_order: NULL handle", hoc_mesh_set_order(NULL, 2, HOC_SPACING_OPTIMAL), NULL, NULLP);
   EXPECT("set_material: NULL handle", hoc_mesh_set_material(NULL, HOC_MATERIAL_LINEAR_ELASTIC, 1, 0.3), NULL, NULLP);
   EXPECT("set_formulation: NULL handle", hoc_mesh_set_formulation(NULL, HOC_FORMULATION_LINEAR), NULL, NULLP);
+  EXPECT("set_newton: NULL handle", hoc_mesh_set_newton(NULL, 1e-6, 10), NULL, NULLP);
+  EXPECT("set_fibres: NULL handle", hoc_mesh_set_fibres(NULL, 0, NULL), NULL, NULLP);
   EXPECT("run_increments: NULL handle", hoc_mesh_run_increments(NULL, 1), NULL, NULLP);
   EXPECT("quality: NULL handle", hoc_mesh_quality(NULL, &q), NULL, NULLP);
   EXPECT("cell_quality: NULL handle", hoc_mesh_cell_quality(NULL, 3, 2, x), NULL, NULLP);
@@ -211,6 +213,15 @@ int main(void) {
   EXPECT("set_material: model -1", hoc_mesh_set_material(mesh, (HocMaterial)-1, 1, 0.3), mesh, BADARG);
   EXPECT("set_formulation: 42", hoc_mesh_set_formulation(mesh, (HocFormulation)42), mesh, BADARG);
   EXPECT("set_formulation: -1", hoc_mesh_set_formulation(mesh, (HocFormulation)-1), mesh, BADARG);
+  EXPECT("set_newton: max_iterations -1", hoc_mesh_set_newton(mesh, 1e-6, -1), mesh, BADARG);
+  {
+    const double fib[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}; /* the square has 2 cells */
+    EXPECT("set_fibres: n_cells 1 (mesh has 2)", hoc_mesh_set_fibres(mesh, 1, fib), mesh, HOC_ERROR_BUFFER_SIZE);
+    EXPECT("set_fibres: n_cells 3 (mesh has 2)", hoc_mesh_set_fibres(mesh, 3, fib), mesh, HOC_ERROR_BUFFER_SIZE);
+    CHECK_OK(mesh, hoc_mesh_set_fibres(mesh, 2, fib));
+    CHECK_OK(mesh, hoc_mesh_set_fibres(mesh, 0, NULL));
+    CHECK_OK(mesh, hoc_mesh_set_newton(mesh, 1e-8, 50));
+  }
   EXPECT("set_threads: -1", hoc_mesh_set_threads(mesh, -1), mesh, BADARG);
   EXPECT("write: unknown extension", hoc_mesh_write(mesh, "out.xyz"), mesh, BADARG, HOC_ERROR_IO);
   EXPECT("write: missing directory", hoc_mesh_write(mesh, "/nonexistent-dir/out.msh"), mesh, HOC_ERROR_IO);
@@ -364,6 +375,19 @@ int main(void) {
   check_unchanged("set_order after a run gives the straight mesh", mesh, &straight);
   free(straight.x);
   free(curved.x);
+  /* Last, so that a failure here leaves every case above checked. */
+  /* Formulations IIL/CIL/NONLINEAR need a hyperelastic material: caught at the run. */
+  CHECK_OK(mesh, hoc_mesh_set_projector(mesh, sphere_box_projector, NULL));
+  CHECK_OK(mesh, hoc_mesh_set_progress(mesh, NULL, NULL));
+  CHECK_OK(mesh, hoc_mesh_set_material(mesh, HOC_MATERIAL_LINEAR_ELASTIC, 1.0, 0.3));
+  CHECK_OK(mesh, hoc_mesh_set_formulation(mesh, HOC_FORMULATION_CIL));
+  run_fails("run: CIL with a linear elastic material", mesh, 1, BADARG, BADARG, BADARG);
+  CHECK_OK(mesh, hoc_mesh_set_formulation(mesh, HOC_FORMULATION_NONLINEAR));
+  run_fails("run: NONLINEAR with a linear elastic material", mesh, 1, BADARG, BADARG, BADARG);
+  EXPECT("set_newton: tolerance 0", hoc_mesh_set_newton(mesh, 0.0, 10), mesh, BADARG);
+  EXPECT("set_newton: tolerance -1", hoc_mesh_set_newton(mesh, -1.0, 10), mesh, BADARG);
+  EXPECT("set_newton: tolerance NaN", hoc_mesh_set_newton(mesh, NAN, 10), mesh, BADARG);
+  EXPECT("set_newton: max_iterations 0", hoc_mesh_set_newton(mesh, 1e-6, 0), mesh, BADARG);
   CHECK_OK(mesh, hoc_mesh_destroy(&mesh));
   fixture_mesh_free(&fx);
   printf("%d bad inputs rejected with a status and a message\n", n_cases);

@@ -40,6 +40,7 @@ int main() {
     REQUIRE(false, "a mesh without cells was accepted");
   } catch (const hocurve::Error &e) {
     REQUIRE(e.status() == HOC_ERROR_INVALID_MESH, "status %d", e.status());
+    REQUIRE(!e.message().empty(), "a failed create has no message");
     std::printf("no cells: %s\n", e.what());
   }
 
@@ -52,6 +53,23 @@ int main() {
     REQUIRE(!e.message().empty(), "no message");
     std::printf("order 11: %s\n", e.what());
   }
+  try {
+    mesh.set_fibres(std::vector<double>(3 * (fx.n_cells + 1), 1.0));
+    REQUIRE(false, "fibres for too many cells accepted");
+  } catch (const hocurve::Error &e) {
+    REQUIRE(e.status() == HOC_ERROR_BUFFER_SIZE, "status %d", e.status());
+    std::printf("fibres: %s\n", e.what());
+  }
+  try {
+    mesh.set_newton(1e-6, -1);
+    REQUIRE(false, "Newton max_iterations -1 accepted");
+  } catch (const hocurve::Error &e) {
+    REQUIRE(e.status() == HOC_ERROR_INVALID_ARGUMENT, "status %d", e.status());
+    std::printf("newton: %s\n", e.what());
+  }
+  mesh.set_fibres(std::vector<double>(3 * fx.n_cells, 1.0));
+  mesh.reset_fibres();
+  mesh.set_newton(1e-6, 20);
 
   std::size_t calls = 0;
   const double R = 0.5;

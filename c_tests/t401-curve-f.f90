@@ -94,6 +94,13 @@ program t401_curve_f
   call check(hoc_mesh_set_material(mesh, HOC_MATERIAL_LINEAR_ELASTIC, 1.0_c_double, 0.3_c_double), &
              "set_material")
   call check(hoc_mesh_set_formulation(mesh, HOC_FORMULATION_LINEAR), "set_formulation")
+  call check(hoc_mesh_set_newton(mesh, 1.0e-6_c_double, 20_c_int), "set_newton")
+  call check(hoc_mesh_set_fibres(mesh, 0_c_size_t, c_null_ptr), "set_fibres")
+  st = hoc_mesh_set_newton(mesh, 1.0e-6_c_double, -1_c_int)
+  if (st /= HOC_ERROR_INVALID_ARGUMENT .or. len(hoc_string(hoc_mesh_last_error(mesh))) == 0) then
+    print *, "set_newton(1e-6, -1) gave", st
+    error stop 1
+  end if
 
   ! A bad order: a status and a message, read through hoc_string.
   st = hoc_mesh_set_order(mesh, 11_c_int, HOC_SPACING_OPTIMAL)

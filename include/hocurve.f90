@@ -181,6 +181,25 @@ module hocurve
       integer(c_int) :: status
     end function hoc_mesh_set_formulation
 
+    function hoc_mesh_set_newton(mesh, tolerance, max_iterations) &
+        bind(C, name="hoc_mesh_set_newton") result(status)
+      import :: c_int, c_ptr, c_double
+      type(c_ptr), value :: mesh
+      real(c_double), value :: tolerance
+      integer(c_int), value :: max_iterations
+      integer(c_int) :: status
+    end function hoc_mesh_set_newton
+
+    !> fibres: 3 * n_cells doubles, or c_null_ptr for the default
+    function hoc_mesh_set_fibres(mesh, n_cells, fibres) &
+        bind(C, name="hoc_mesh_set_fibres") result(status)
+      import :: c_int, c_ptr, c_size_t
+      type(c_ptr), value :: mesh
+      integer(c_size_t), value :: n_cells
+      type(c_ptr), value :: fibres
+      integer(c_int) :: status
+    end function hoc_mesh_set_fibres
+
     function hoc_mesh_run_increments(mesh, increments) &
         bind(C, name="hoc_mesh_run_increments") result(status)
       import :: c_int, c_ptr
@@ -272,7 +291,8 @@ module hocurve
 
   public :: hoc_mesh_create, hoc_mesh_destroy, hoc_mesh_set_boundary, hoc_mesh_set_feature_edges, &
             hoc_mesh_set_projector, hoc_mesh_set_progress, hoc_mesh_set_threads, hoc_mesh_set_order, &
-            hoc_mesh_set_material, hoc_mesh_set_formulation, hoc_mesh_run_increments, &
+            hoc_mesh_set_material, hoc_mesh_set_formulation, hoc_mesh_set_newton, hoc_mesh_set_fibres, &
+            hoc_mesh_run_increments, &
             hoc_mesh_quality, hoc_mesh_cell_quality, hoc_mesh_node_count, hoc_mesh_cell_count, &
             hoc_mesh_get_nodes, hoc_mesh_get_cells, hoc_mesh_write, hoc_mesh_last_error, &
             hoc_status_string, hoc_version, hoc_string

@@ -72,7 +72,8 @@ inline std::string version() { return hoc_version(); }
 /** Throws Error(status, message) unless status is HOC_OK. */
 inline void check(HocStatus status, const HocMesh *mesh) {
   if (status == HOC_OK) return;
-  const char *msg = mesh ? hoc_mesh_last_error(mesh) : nullptr;
+  // With no handle, hoc_mesh_last_error(NULL) gives this thread's last handle-less failure.
+  const char *msg = hoc_mesh_last_error(mesh);
   throw Error(status, msg ? msg : "");
 }
 
@@ -197,6 +198,18 @@ class Mesh {
   void set_formulation(HocFormulation formulation) {
     check(hoc_mesh_set_formulation(mesh_, formulation), mesh_);
   }
+  /** Newton–Raphson settings of HOC_FORMULATION_NONLINEAR: tolerance > 0, max_iterations ≥ 1. */
+  void set_newton(double tolerance, int max_iterations) {
+    check(hoc_mesh_set_newton(mesh_, tolerance, max_iterations), mesh_);
+  }
+  /** One fibre direction (3 doubles) per cell; n_cells must equal the cell count. */
+  void set_fibres(std::size_t n_cells, const double *fibres) {
+    check(hoc_mesh_set_fibres(mesh_, n_cells, fibres), mesh_);
+  }
+  /** From a vector of 3 * n_cells doubles. */
+  void set_fibres(const std::vector<double> &fibres) { set_fibres(fibres.size() / 3, fibres.data()); }
+  /** Back to the default fibres. */
+  void reset_fibres() { check(hoc_mesh_set_fibres(mesh_, 0, nullptr), mesh_); }
   /** Curves the mesh. On failure the mesh is as before, and a callback's exception is rethrown. */
   void run_increments(int increments = 1) {
     if (callbacks_) callbacks_->pending = nullptr;

@@ -26,7 +26,10 @@ PKG_CONFIG_PATH=$prefix/lib/pkgconfig \
 "$work/t000-pkgconfig" >/dev/null
 echo "pkg-config build of t000-version: ok"
 
-ctest --test-dir "$build" -L api -j "$jobs" --output-on-failure
+# Both passes run even if the first fails; the script fails if either did.
+status=0
+ctest --test-dir "$build" -L api -j "$jobs" --output-on-failure || status=1
 if [ $memcheck = ON ]; then
-  ctest --test-dir "$build" -L memcheck -j "$jobs" --output-on-failure
+  ctest --test-dir "$build" -L memcheck -j "$jobs" --output-on-failure || status=1
 fi
+exit $status
