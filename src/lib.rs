@@ -19,6 +19,7 @@ pub mod quality;
 pub mod reference;
 pub mod session;
 pub mod solver;
+pub mod study;
 
 pub mod cases;
 pub mod ffi;

@@ -47,6 +47,10 @@ USAGE:
 
   hocurve quality MESH.msh [--report R.json]
       Measure Q1, Q2, Q3 of any high-order gmsh mesh.
+
+  hocurve study [--quick] [--output-dir DIR]
+      Sweep Poisson's ratio, p and ILE/CIL/NONLINEAR on built-in 2D cases; print
+      a min-Q3 table, write DIR/study.csv and DIR/study-<case>-p<P>.svg.
 ";
 
 fn main() -> ExitCode {
@@ -55,6 +59,7 @@ fn main() -> ExitCode {
         Some("demo") => cmd_demo(&args[1..]),
         Some("curve") => cmd_curve(&args[1..]),
         Some("quality") => cmd_quality(&args[1..]),
+        Some("study") => cmd_study(&args[1..]),
         Some("-h") | Some("--help") | Some("help") | None => {
             print!("{USAGE}");
             return ExitCode::SUCCESS;
@@ -195,6 +200,25 @@ fn cmd_demo(argv: &[String]) -> Result<()> {
     );
     write_text_atomic(&path, &body)?;
     eprintln!("wrote {}", path.display());
+    Ok(())
+}
+
+fn cmd_study(argv: &[String]) -> Result<()> {
+    let quick = argv.iter().any(|a| a == "--quick");
+    let rest: Vec<String> = argv.iter().filter(|a| *a != "--quick").cloned().collect();
+    let args = Args::parse(&rest, &["output-dir"])?;
+    let dir = PathBuf::from(args.get("output-dir").unwrap_or("."));
+    std::fs::create_dir_all(&dir).map_err(|e| Error::Io(format!("cannot create {}: {e}", dir.display())))?;
+    let config = if quick { hocurve::study::StudyConfig::quick() } else { hocurve::study::StudyConfig::full() };
+    let t = std::time::Instant::now();
+    let study = hocurve::study::run(&config);
+    print!("{}", study.table());
+    eprintln!("study: {} runs in {:.1} s", study.cells.len(), t.elapsed().as_secs_f64());
+    write_text_atomic(&dir.join("study.csv"), &study.csv())?;
+    for (name, svg) in study.plots() {
+        write_text_atomic(&dir.join(name), &svg)?;
+    }
+    eprintln!("wrote {}/study.csv and the plots", dir.display());
     Ok(())
 }
 
