@@ -15,7 +15,7 @@ use crate::mesh::{validate_and_orient, HighOrderMesh, LinearMesh, NodeConstraint
 use crate::quadrature::simplex_rule;
 use crate::quality::{self, ElementQuality, MeshQuality};
 use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
-use crate::solver::{try_lu_solve_in_place, SparseCholesky, SymmetricCsc};
+use crate::solver::{DirectSolver, LinearSolver, SolverChoice, SymmetricCsc};
 use crate::{Error, Result};
 
 /// The solid-mechanics formulation (paper Table 1).
@@ -80,6 +80,8 @@ pub struct CurveOptions {
     /// Fibre direction per cell for the transversely isotropic models; by
     /// default −x inside and tangent to the boundary on boundary cells.
     pub fibres: Option<Vec<[f64; 3]>>,
+    /// Linear solver of every increment (default: chosen by size).
+    pub solver: SolverChoice,
 }
 
 impl Default for CurveOptions {
@@ -97,6 +99,7 @@ impl Default for CurveOptions {
             tolerance: 1e-5,
             max_iterations: 30,
             fibres: None,
+            solver: SolverChoice::Auto,
         }
     }
 }
@@ -125,6 +128,8 @@ pub struct Timings {
     pub elevate: f64,
     pub project: f64,
     pub assembly: f64,
+    /// Symbolic analysis and preconditioner set-up.
+    pub setup: f64,
     pub solve: f64,
     pub quality: f64,
 }
@@ -151,6 +156,10 @@ pub struct CurveReport {
     pub timings: Timings,
     /// NONLINEAR: ‖R‖/‖R₀‖ after each Newton iteration, per increment.
     pub newton_history: Vec<Vec<f64>>,
+    /// The linear solver that ran ("direct", ...).
+    pub linear_solver: &'static str,
+    /// Krylov iterations of each linear solve (zeros for a direct solver).
+    pub solver_iterations: Vec<usize>,
 }
 
 /// The result of a successful run.
@@ -255,6 +264,7 @@ pub fn curve(
         increments,
         residual: matches!(opts.formulation, Formulation::Iil | Formulation::Cil),
         newton: (opts.formulation == Formulation::Nonlinear).then_some((opts.tolerance, opts.max_iterations)),
+        solver: opts.solver,
     };
     let mode = match opts.formulation {
         Formulation::Cil | Formulation::Nonlinear => TangentMode::Consistent,
@@ -262,7 +272,7 @@ pub fn curve(
     };
     let linear_iso = matches!(opts.formulation, Formulation::Linear | Formulation::Ile)
         && !opts.material.is_transversely_isotropic();
-    let (dofs, newton_history) = if linear_iso {
+    let solved = if linear_iso {
         // Every isotropic model is calibrated so that c(F = I) = c_lin: the fast kernel.
         let kernel = LinearElasticKernel { cache: cache.clone(), material };
         solve_increments(&mut mesh, &kernel, &ubar, stepping, &mut timings, &mut tick)?
@@ -290,14 +300,16 @@ pub fn curve(
         poisson: opts.poisson,
         increments,
         nodes: mesh.n_nodes(),
-        dofs,
+        dofs: solved.n_free,
         cells: mesh.n_cells(),
         reoriented_cells: reoriented,
         projected_nodes,
         max_projection_distance: max_dist,
         quality: q,
         timings,
-        newton_history,
+        newton_history: solved.newton_history,
+        linear_solver: solved.linear_solver,
+        solver_iterations: solved.solver_iterations,
     };
     Ok(CurvedMesh { mesh, straight, cell_quality, report })
 }
@@ -311,14 +323,25 @@ pub struct Stepping {
     pub residual: bool,
     /// Newton–Raphson to ‖R_f‖/‖R_0‖ < tolerance in at most max_iterations (NONLINEAR).
     pub newton: Option<(f64, usize)>,
+    pub solver: SolverChoice,
 }
 
-/// Factor and solve with Cholesky; if the matrix is not positive definite
-/// (a CIL or Newton tangent can lose definiteness), fall back to sparse LU.
-fn solve_system(chol: &SparseCholesky, pattern: &SymmetricCsc, values: &[f64], rhs: &mut [f64]) -> Result<()> {
-    match chol.try_factor_solve_in_place(pattern, values, rhs) {
-        Err(Error::Solver(_)) => try_lu_solve_in_place(pattern, values, rhs),
-        r => r,
+/// What [`solve_increments`] reports.
+#[derive(Debug, Clone, Default)]
+pub struct IncrementsReport {
+    /// Unknowns of the linear system.
+    pub n_free: usize,
+    /// NONLINEAR: relative residual history of each increment.
+    pub newton_history: Vec<Vec<f64>>,
+    pub linear_solver: &'static str,
+    /// Krylov iterations of each linear solve.
+    pub solver_iterations: Vec<usize>,
+}
+
+/// The solver `choice` asks for, set up for this mesh and pattern.
+fn make_solver(choice: SolverChoice, _mesh: &HighOrderMesh, pattern: &SymmetricCsc) -> Result<Box<dyn LinearSolver>> {
+    match choice {
+        SolverChoice::Auto | SolverChoice::Direct => Ok(Box::new(DirectSolver::try_new(pattern)?)),
     }
 }
 
@@ -331,8 +354,7 @@ fn euclid(v: &[f64]) -> f64 {
 /// each step assembles the kernel's matrix on the current geometry Ω_n and
 /// solves K_ff u_f = −K_fd ū/n (− R_f(x_n) with `residual`), then updates
 /// x_{n+1} = x_n + u; with `newton`, it then iterates K Δx = −R until
-/// convergence. Returns the number of free dofs and, for Newton, the relative
-/// residual history of each increment.
+/// convergence. Each solve starts from the previous increment's solution.
 pub fn solve_increments<K: ElementKernel>(
     mesh: &mut HighOrderMesh,
     kernel: &K,
@@ -340,24 +362,28 @@ pub fn solve_increments<K: ElementKernel>(
     stepping: Stepping,
     timings: &mut Timings,
     tick: &mut dyn FnMut(Stage, usize, usize) -> Result<()>,
-) -> Result<(usize, Vec<Vec<f64>>)> {
+) -> Result<IncrementsReport> {
     let increments = stepping.increments;
     let dofs = DofMap::new(mesh);
     let step: Vec<f64> = ubar.iter().map(|u| u / increments as f64).collect();
     let zero = vec![0.0; ubar.len()];
-    let mut history = Vec::new();
+    let mut out = IncrementsReport { n_free: dofs.n_free, ..Default::default() };
     if dofs.n_free == 0 || ubar.iter().all(|&u| u == 0.0) {
         for (x, u) in mesh.coords.iter_mut().zip(ubar) {
             *x += u;
         }
-        return Ok((dofs.n_free, history));
+        return Ok(out);
     }
     let t = Instant::now();
     let pattern = dofs.pattern(mesh);
     let colors = color_cells(mesh);
-    let chol = SparseCholesky::try_analyse(&pattern)?;
-    timings.solve += t.elapsed().as_secs_f64();
+    let mut solver = make_solver(stepping.solver, mesh, &pattern)?;
+    out.linear_solver = solver.name();
+    timings.setup += t.elapsed().as_secs_f64();
     let residual = stepping.residual || stepping.newton.is_some();
+    // The increment solution, kept as the next increment's initial guess.
+    let mut u = vec![0.0; dofs.n_free];
+    let mut du = vec![0.0; dofs.n_free];
     for k in 0..increments {
         tick(Stage::Increment, k, increments)?;
         let context = |e: Error| match e {
@@ -368,23 +394,23 @@ pub fn solve_increments<K: ElementKernel>(
             e => e,
         };
         let t = Instant::now();
-        let (values, mut rhs) =
+        let (values, rhs) =
             assemble(mesh, &mesh.coords, &dofs, &pattern, &colors, kernel, &step, residual).map_err(context)?;
         timings.assembly += t.elapsed().as_secs_f64();
         let r0 = euclid(&rhs).max(f64::MIN_POSITIVE);
         let t = Instant::now();
-        solve_system(&chol, &pattern, &values, &mut rhs)?;
+        out.solver_iterations.push(solver.solve(&pattern, &values, &rhs, &mut u)?.iterations);
         timings.solve += t.elapsed().as_secs_f64();
         for (dof, x) in mesh.coords.iter_mut().enumerate() {
             let f = dofs.free[dof];
-            *x += if f == usize::MAX { step[dof] } else { rhs[f] };
+            *x += if f == usize::MAX { step[dof] } else { u[f] };
         }
         let Some((tolerance, max_iterations)) = stepping.newton else { continue };
         let mut hist = vec![1.0];
         let mut converged = false;
         for _ in 0..max_iterations {
             let t = Instant::now();
-            let (values, mut rhs) =
+            let (values, rhs) =
                 assemble(mesh, &mesh.coords, &dofs, &pattern, &colors, kernel, &zero, true).map_err(context)?;
             timings.assembly += t.elapsed().as_secs_f64();
             let ratio = euclid(&rhs) / r0;
@@ -397,17 +423,18 @@ pub fn solve_increments<K: ElementKernel>(
                 break;
             }
             let t = Instant::now();
-            solve_system(&chol, &pattern, &values, &mut rhs)?;
+            du.fill(0.0);
+            out.solver_iterations.push(solver.solve(&pattern, &values, &rhs, &mut du)?.iterations);
             timings.solve += t.elapsed().as_secs_f64();
             for (dof, x) in mesh.coords.iter_mut().enumerate() {
                 let f = dofs.free[dof];
                 if f != usize::MAX {
-                    *x += rhs[f];
+                    *x += du[f];
                 }
             }
         }
         let last = *hist.last().expect("history starts with 1");
-        history.push(hist);
+        out.newton_history.push(hist);
         if !converged {
             return Err(Error::Solver(format!(
                 "Newton-Raphson did not converge in {max_iterations} iterations in increment {} of {increments} \
@@ -416,7 +443,7 @@ pub fn solve_increments<K: ElementKernel>(
             )));
         }
     }
-    Ok((dofs.n_free, history))
+    Ok(out)
 }
 
 /// Batch size of projector calls.

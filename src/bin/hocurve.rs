@@ -3,7 +3,7 @@
 //! ```text
 //! hocurve demo [--order P] [--output-dir DIR]
 //! hocurve curve IN.msh --order P --geometry TAG=SHAPE ... [--formulation F] [--material M]
-//!               [--young E] [--poisson NU] [--increments N] [--spacing optimal|equispaced]
+//!               [--young E] [--poisson NU] [--increments N] [--spacing optimal|equispaced] [--solver S]
 //!               --output OUT.msh|OUT.vtu [--report R.json]
 //! hocurve quality MESH.msh [--report R.json]
 //! ```
@@ -22,6 +22,7 @@ use hocurve::material::MaterialModel;
 use hocurve::mesh::LinearMesh;
 use hocurve::quality::{self, MeshQuality};
 use hocurve::reference::{ordering, LagrangeBasis, NodeSet, NodeSpacing};
+use hocurve::solver::SolverChoice;
 use hocurve::{Error, Result};
 
 const USAGE: &str = "\
@@ -37,7 +38,7 @@ USAGE:
                 --output OUT.msh|OUT.vtu [--report R.json]
                 [--formulation linear|ile] [--material linear]
                 [--young E] [--poisson NU] [--increments N]
-                [--spacing optimal|equispaced]
+                [--spacing optimal|equispaced] [--solver auto|direct]
       Curve a linear gmsh (.msh 4.1) mesh. TAG is the elementary entity tag of
       the boundary facets (or 3D feature curves) that lie on SHAPE:
         sphere:cx,cy,cz,r        circle:cx,cy,r (2D)     circle3:cx,cy,cz,nx,ny,nz,r
@@ -135,6 +136,9 @@ fn options_from(args: &Args, default_order: usize) -> Result<CurveOptions> {
     o.young = args.number("young", o.young)?;
     o.poisson = args.number("poisson", o.poisson)?;
     o.increments = args.number("increments", o.increments)?;
+    if let Some(s) = args.get("solver") {
+        o.solver = SolverChoice::parse(s)?;
+    }
     o.spacing = match args.get("spacing") {
         None | Some("optimal") => NodeSpacing::Optimal,
         Some("equispaced") => NodeSpacing::Equispaced,
@@ -234,6 +238,7 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
             "poisson",
             "increments",
             "spacing",
+            "solver",
             "output",
             "report",
         ],
@@ -383,7 +388,8 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
         "{{\n  \"order\": {},\n  \"formulation\": \"{}\",\n  \"material\": \"{}\",\n  \"young\": {},\n  \
          \"poisson\": {},\n  \"increments\": {},\n  \"spacing\": \"{}\",\n  \"nodes\": {},\n  \"dofs\": {},\n  \
          \"cells\": {},\n  \"projected_nodes\": {},\n  \"max_projection_distance\": {},\n{},\n  \
-         \"newton_history\": {:?},\n  \"seconds\": {{\"total\": {}, \"elevate\": {}, \"project\": {}, \"assembly\": {}, \"solve\": {}, \"quality\": {}}},\n  \
+         \"newton_history\": {:?},\n  \"linear_solver\": \"{}\",\n  \"solver_iterations\": {:?},\n  \
+         \"seconds\": {{\"total\": {}, \"elevate\": {}, \"project\": {}, \"assembly\": {}, \"setup\": {}, \"solve\": {}, \"quality\": {}}},\n  \
          \"output\": {}\n}}",
         r.order,
         r.formulation.name(),
@@ -399,10 +405,13 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
         num(r.max_projection_distance),
         quality_json(&r.quality),
         r.newton_history,
+        r.linear_solver,
+        r.solver_iterations,
         num(t.total),
         num(t.elevate),
         num(t.project),
         num(t.assembly),
+        num(t.setup),
         num(t.solve),
         num(t.quality),
         output.map(|p| format!("\"{}\"", json_escape(&p.display().to_string()))).unwrap_or("null".into())

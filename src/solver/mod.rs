@@ -11,6 +11,86 @@ mod lu;
 pub use cholesky::SparseCholesky;
 pub use lu::try_lu_solve_in_place;
 
+use crate::{Error, Result};
+
+/// What one linear solve reports.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SolveStats {
+    /// Krylov iterations (0 for a direct solve).
+    pub iterations: usize,
+}
+
+/// A solver for a sequence of symmetric systems on one sparsity pattern (one
+/// per load increment or Newton iteration).
+pub trait LinearSolver {
+    /// Short name for reports ("direct", "pcg-pmg", "external").
+    fn name(&self) -> &'static str;
+    /// Solve A x = b for the matrix with lower triangle (`pattern`, `values`).
+    /// On entry `x` holds the initial guess (iterative solvers start from it,
+    /// direct ones ignore it); on exit, the solution.
+    fn solve(&mut self, pattern: &SymmetricCsc, values: &[f64], rhs: &[f64], x: &mut [f64]) -> Result<SolveStats>;
+}
+
+/// Sparse Cholesky with the symbolic analysis done once; if a matrix is not
+/// positive definite (a CIL or Newton tangent can lose definiteness), sparse LU.
+pub struct DirectSolver {
+    chol: SparseCholesky,
+}
+
+impl DirectSolver {
+    pub fn try_new(pattern: &SymmetricCsc) -> Result<DirectSolver> {
+        Ok(DirectSolver { chol: SparseCholesky::try_analyse(pattern)? })
+    }
+}
+
+impl LinearSolver for DirectSolver {
+    fn name(&self) -> &'static str {
+        "direct"
+    }
+    fn solve(&mut self, pattern: &SymmetricCsc, values: &[f64], rhs: &[f64], x: &mut [f64]) -> Result<SolveStats> {
+        x.copy_from_slice(rhs);
+        match self.chol.try_factor_solve_in_place(pattern, values, x) {
+            Err(Error::Solver(_)) => {
+                x.copy_from_slice(rhs);
+                try_lu_solve_in_place(pattern, values, x)?
+            }
+            r => r?,
+        }
+        Ok(SolveStats::default())
+    }
+}
+
+/// Which linear solver runs the increments.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum SolverChoice {
+    /// The direct solver for every system (2D, and 3D up to
+    /// [`AUTO_DIRECT_MAX_DOFS`]), the iterative one above.
+    #[default]
+    Auto,
+    /// Sparse Cholesky (LU when not positive definite).
+    Direct,
+}
+
+/// Largest 3D system that [`SolverChoice::Auto`] solves directly.
+pub const AUTO_DIRECT_MAX_DOFS: usize = 20_000;
+
+impl SolverChoice {
+    pub fn name(self) -> &'static str {
+        match self {
+            SolverChoice::Auto => "auto",
+            SolverChoice::Direct => "direct",
+        }
+    }
+
+    pub fn parse(s: &str) -> Result<SolverChoice> {
+        match s.to_ascii_lowercase().as_str() {
+            "auto" => Ok(SolverChoice::Auto),
+            "direct" => Ok(SolverChoice::Direct),
+            _ => Err(Error::InvalidInput(format!("unknown linear solver '{s}' (expected auto or direct)"))),
+        }
+    }
+}
+
 /// Lower triangle (row ≥ column) of a symmetric `n`×`n` sparse matrix, CSC.
 #[derive(Debug, Clone, Default)]
 pub struct SymmetricCsc {
