@@ -15,7 +15,7 @@ use crate::mesh::{validate_and_orient, HighOrderMesh, LinearMesh, NodeConstraint
 use crate::quadrature::simplex_rule;
 use crate::quality::{self, ElementQuality, MeshQuality};
 use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
-use crate::solver::{DirectSolver, LinearSolver, SolverChoice, SymmetricCsc};
+use crate::solver::{DirectSolver, ExternalAdapter, LinearSolver, SolverChoice, SymmetricCsc};
 use crate::{Error, Result};
 
 /// The solid-mechanics formulation (paper Table 1).
@@ -264,7 +264,7 @@ pub fn curve(
         increments,
         residual: matches!(opts.formulation, Formulation::Iil | Formulation::Cil),
         newton: (opts.formulation == Formulation::Nonlinear).then_some((opts.tolerance, opts.max_iterations)),
-        solver: opts.solver,
+        solver: opts.solver.clone(),
     };
     let mode = match opts.formulation {
         Formulation::Cil | Formulation::Nonlinear => TangentMode::Consistent,
@@ -315,7 +315,7 @@ pub fn curve(
 }
 
 /// How the load increments are driven (paper Table 1).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Stepping {
     /// Number of load increments n ≥ 1.
     pub increments: usize,
@@ -342,6 +342,7 @@ pub struct IncrementsReport {
 fn make_solver(choice: SolverChoice, _mesh: &HighOrderMesh, pattern: &SymmetricCsc) -> Result<Box<dyn LinearSolver>> {
     match choice {
         SolverChoice::Auto | SolverChoice::Direct => Ok(Box::new(DirectSolver::try_new(pattern)?)),
+        SolverChoice::External(host) => Ok(Box::new(ExternalAdapter::new(host, pattern))),
     }
 }
 
@@ -377,7 +378,7 @@ pub fn solve_increments<K: ElementKernel>(
     let t = Instant::now();
     let pattern = dofs.pattern(mesh);
     let colors = color_cells(mesh);
-    let mut solver = make_solver(stepping.solver, mesh, &pattern)?;
+    let mut solver = make_solver(stepping.solver.clone(), mesh, &pattern)?;
     out.linear_solver = solver.name();
     timings.setup += t.elapsed().as_secs_f64();
     let residual = stepping.residual || stepping.newton.is_some();

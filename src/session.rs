@@ -14,6 +14,7 @@ pub use crate::material::MaterialModel;
 use crate::mesh::{validate_and_orient, HighOrderMesh, LinearMesh, Topology};
 use crate::quality::{self, ElementQuality, MeshQuality};
 use crate::reference::{ordering, NodeSet, NodeSpacing};
+use crate::solver::{ExternalSolver, SolverChoice};
 use crate::{Error, Result};
 
 /// Progress callback: return `false` to cancel.
@@ -37,6 +38,8 @@ pub struct Session {
     opts: CurveOptions,
     projector: Option<Box<dyn Projector + Send>>,
     progress: Option<ProgressFn>,
+    /// The host's linear solver; it overrides `opts.solver` while set.
+    external_solver: Option<ExternalSolver>,
     threads: usize,
     pool: Option<rayon::ThreadPool>,
     mesh: HighOrderMesh,
@@ -59,6 +62,7 @@ impl Session {
             opts,
             projector: None,
             progress: None,
+            external_solver: None,
             threads: 0,
             pool: None,
             mesh,
@@ -176,6 +180,12 @@ impl Session {
         self.progress = progress;
     }
 
+    /// The host's linear solver for every system of the next runs; None
+    /// restores the built-in one (`options().solver`).
+    pub fn set_linear_solver(&mut self, solver: Option<ExternalSolver>) {
+        self.external_solver = solver;
+    }
+
     /// Worker threads of this session's own pool (0 = one per core). The
     /// host's global rayon pool is never used.
     pub fn set_threads(&mut self, threads: usize) {
@@ -188,7 +198,10 @@ impl Session {
     /// Curve the mesh in `increments` load increments. On error the session
     /// is exactly as before the call.
     pub fn run(&mut self, increments: usize) -> Result<()> {
-        let opts = CurveOptions { increments, ..self.opts.clone() };
+        let mut opts = CurveOptions { increments, ..self.opts.clone() };
+        if let Some(e) = &self.external_solver {
+            opts.solver = SolverChoice::External(e.clone());
+        }
         validate_options(&opts)?;
         let has_tags = !self.linear.facets.is_empty() || !self.linear.feature_edges.is_empty();
         if has_tags && self.projector.is_none() {

@@ -12,6 +12,7 @@
 
 #![allow(clippy::missing_safety_doc)]
 
+use std::borrow::Cow;
 use std::cell::RefCell;
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -23,6 +24,7 @@ use crate::material::MaterialModel;
 use crate::mesh::LinearMesh;
 use crate::reference::NodeSpacing;
 use crate::session::{NodeOrdering, Session};
+use crate::solver::{CsrView, ExternalSolver, SystemSolver};
 use crate::Error;
 
 /// Status code returned by every function (0 = success).
@@ -130,6 +132,47 @@ pub type HocProjectFn = Option<
 /// `step` of `total`. Return 0 to continue, nonzero to cancel the run.
 pub type HocProgressFn =
     Option<unsafe extern "C" fn(user_data: *mut c_void, stage: c_int, step: c_int, total: c_int) -> c_int>;
+
+/// Solves one reduced linear system A x = b of a run with the host's solver
+/// (PETSc, MUMPS, hypre, ...).
+///
+/// A is the stiffness matrix restricted to the free degrees of freedom (the
+/// unknowns of the interior and of untagged boundary nodes; the projected
+/// nodes are eliminated): `n` × `n`, symmetric, given in full CSR form with
+/// both triangles, 0-based, columns sorted within each row. Row `i` holds the
+/// columns `col_idx[row_ptr[i] .. row_ptr[i+1]-1]` with the values at the
+/// same positions of `values`; `row_ptr` has `n + 1` entries and `row_ptr[n]`
+/// is the number of entries. The pattern is the same for every call of a run
+/// (only the values change), so a solver may reuse its symbolic set-up while
+/// `n` and `row_ptr[n]` stay the same. A is positive definite for the
+/// LINEAR and ILE formulations; with CIL or NONLINEAR it may be indefinite.
+///
+/// On entry `x` (`n` doubles) holds an initial guess: the previous increment's
+/// solution (zeros for the first one, and for each Newton correction); on
+/// return it must hold the solution. Return 0 on success. A nonzero return, or
+/// a non-finite value left in `x`, stops the run with HOC_ERROR_SOLVER and a
+/// message naming the external linear solver and the status; the mesh is then
+/// unchanged.
+///
+/// All pointers are valid only during the call; `row_ptr`, `col_idx`,
+/// `values` and `rhs` must not be modified. It is called once per linear
+/// system (once per load increment; for HOC_FORMULATION_NONLINEAR, once more
+/// per Newton iteration), one call at a time, from the thread that runs the
+/// curving: a worker thread of the handle's pool, while hoc_mesh_run_increments
+/// blocks the calling thread. Two handles running at once may call it at once.
+/// It must not call back into hocurve on the same handle, and must not unwind
+/// (throw, longjmp) through the library.
+pub type HocLinearSolverFn = Option<
+    unsafe extern "C" fn(
+        user_data: *mut c_void,
+        n: i64,
+        row_ptr: *const i64,
+        col_idx: *const i64,
+        values: *const f64,
+        rhs: *const f64,
+        x: *mut f64,
+    ) -> c_int,
+>;
 
 /// Opaque handle: one mesh being curved.
 pub struct HocMesh {
@@ -432,6 +475,72 @@ pub unsafe extern "C" fn hoc_mesh_set_progress(
                 unsafe { f(ud.0, stage, p.step as c_int, p.total as c_int) == 0 }
             }) as crate::session::ProgressFn
         }));
+        Ok(())
+    })
+}
+
+/// Adapts a C linear-solver callback to [`SystemSolver`].
+struct CLinearSolver {
+    f: unsafe extern "C" fn(*mut c_void, i64, *const i64, *const i64, *const f64, *const f64, *mut f64) -> c_int,
+    user_data: *mut c_void,
+}
+
+// SAFETY: a run calls the solver from one thread at a time (documented in the
+// header, with the case of two handles sharing it); the host owns `user_data`.
+unsafe impl Send for CLinearSolver {}
+unsafe impl Sync for CLinearSolver {}
+
+/// Indices as `int64_t`: borrowed where `usize` has the same layout.
+fn as_i64(v: &[usize]) -> Cow<'_, [i64]> {
+    if std::mem::size_of::<usize>() == std::mem::size_of::<i64>() {
+        // SAFETY: same size and alignment; entries are offsets into Rust
+        // allocations, so at most isize::MAX and unchanged as i64.
+        Cow::Borrowed(unsafe { std::slice::from_raw_parts(v.as_ptr() as *const i64, v.len()) })
+    } else {
+        Cow::Owned(v.iter().map(|&k| k as i64).collect())
+    }
+}
+
+impl SystemSolver for CLinearSolver {
+    fn solve(&self, a: CsrView<'_>, rhs: &[f64], x: &mut [f64]) -> std::result::Result<(), String> {
+        let (row_ptr, col_idx) = (as_i64(a.row_ptr), as_i64(a.col_idx));
+        // SAFETY: row_ptr has n + 1 entries, col_idx and values row_ptr[n],
+        // rhs and x n each (the adapter's pattern); the callback is the host's.
+        let rc = unsafe {
+            (self.f)(
+                self.user_data,
+                a.n as i64,
+                row_ptr.as_ptr(),
+                col_idx.as_ptr(),
+                a.values.as_ptr(),
+                rhs.as_ptr(),
+                x.as_mut_ptr(),
+            )
+        };
+        if rc != 0 {
+            return Err(format!("the callback returned status {rc}"));
+        }
+        Ok(())
+    }
+}
+
+/// Solve every linear system of the next runs with the host's solver (see
+/// HocLinearSolverFn for what it receives and must return); NULL restores the
+/// built-in solvers.
+///
+/// @param[in,out] mesh the handle
+/// @param[in] solve the callback, or NULL
+/// @param[in] user_data passed back to every call
+/// @return HOC_OK or HOC_ERROR_NULL_POINTER
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_set_linear_solver(
+    mesh: *mut HocMesh,
+    solve: HocLinearSolverFn,
+    user_data: *mut c_void,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle_mut(mesh)?;
+        h.session.set_linear_solver(solve.map(|f| ExternalSolver::new(CLinearSolver { f, user_data })));
         Ok(())
     })
 }

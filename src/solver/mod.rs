@@ -4,11 +4,15 @@
 //! compressed-column form; [`SparseCholesky`] does the symbolic analysis (fill-
 //! reducing AMD ordering and elimination tree) once and the numeric
 //! factorisation for every new set of values on the same pattern.
+//! [`ExternalAdapter`] hands each system to a solver of the host's
+//! ([`SystemSolver`]) as a full CSR matrix.
 
 mod cholesky;
+mod external;
 mod lu;
 
 pub use cholesky::SparseCholesky;
+pub use external::{CsrView, ExternalAdapter, ExternalSolver, FullCsrPattern, SystemSolver};
 pub use lu::try_lu_solve_in_place;
 
 use crate::{Error, Result};
@@ -61,7 +65,7 @@ impl LinearSolver for DirectSolver {
 }
 
 /// Which linear solver runs the increments.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub enum SolverChoice {
     /// The direct solver for every system (2D, and 3D up to
     /// [`AUTO_DIRECT_MAX_DOFS`]), the iterative one above.
@@ -69,16 +73,19 @@ pub enum SolverChoice {
     Auto,
     /// Sparse Cholesky (LU when not positive definite).
     Direct,
+    /// The host's solver (see [`SystemSolver`]).
+    External(ExternalSolver),
 }
 
 /// Largest 3D system that [`SolverChoice::Auto`] solves directly.
 pub const AUTO_DIRECT_MAX_DOFS: usize = 20_000;
 
 impl SolverChoice {
-    pub fn name(self) -> &'static str {
+    pub fn name(&self) -> &'static str {
         match self {
             SolverChoice::Auto => "auto",
             SolverChoice::Direct => "direct",
+            SolverChoice::External(_) => "external",
         }
     }
 
