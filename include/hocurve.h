@@ -42,6 +42,39 @@ typedef int (*HocProjectFn)(void *user_data, int entity_dim, int entity_tag, siz
 typedef int (*HocProgressFn)(void *user_data, int stage, int step, int total);
 
 /**
+ * Solves one reduced linear system A x = b of a run with the host's solver
+ * (PETSc, MUMPS, hypre, ...).
+ *
+ * A is the stiffness matrix restricted to the free degrees of freedom (the
+ * unknowns of the interior and of untagged boundary nodes; the projected
+ * nodes are eliminated): `n` × `n`, symmetric, given in full CSR form with
+ * both triangles, 0-based, columns sorted within each row. Row `i` holds the
+ * columns `col_idx[row_ptr[i] .. row_ptr[i+1]-1]` with the values at the
+ * same positions of `values`; `row_ptr` has `n + 1` entries and `row_ptr[n]`
+ * is the number of entries. The pattern is the same for every call of a run
+ * (only the values change), so a solver may reuse its symbolic set-up while
+ * `n` and `row_ptr[n]` stay the same. A is positive definite for the
+ * LINEAR and ILE formulations; with CIL or NONLINEAR it may be indefinite.
+ *
+ * On entry `x` (`n` doubles) holds an initial guess: the previous increment's
+ * solution (zeros for the first one, and for each Newton correction); on
+ * return it must hold the solution. Return 0 on success. A nonzero return, or
+ * a non-finite value left in `x`, stops the run with HOC_ERROR_SOLVER and a
+ * message naming the external linear solver and the status; the mesh is then
+ * unchanged.
+ *
+ * All pointers are valid only during the call; `row_ptr`, `col_idx`,
+ * `values` and `rhs` must not be modified. It is called once per linear
+ * system (once per load increment; for HOC_FORMULATION_NONLINEAR, once more
+ * per Newton iteration), one call at a time, from the thread that runs the
+ * curving: a worker thread of the handle's pool, while hoc_mesh_run_increments
+ * blocks the calling thread. Two handles running at once may call it at once.
+ * It must not call back into hocurve on the same handle, and must not unwind
+ * (throw, longjmp) through the library.
+ */
+typedef int (*HocLinearSolverFn)(void *user_data, int64_t n, const int64_t *row_ptr, const int64_t *col_idx, const double *values, const double *rhs, double *x);
+
+/**
  * Placement of the high-order nodes in the reference element.
  */
 typedef int HocNodeSpacing;
@@ -291,6 +324,18 @@ HocStatus hoc_mesh_set_projector(HocMesh *mesh, HocProjectFn callback, void *use
  * @return HOC_OK or HOC_ERROR_NULL_POINTER
  */
 HocStatus hoc_mesh_set_progress(HocMesh *mesh, HocProgressFn callback, void *user_data);
+
+/**
+ * Solve every linear system of the next runs with the host's solver (see
+ * HocLinearSolverFn for what it receives and must return); NULL restores the
+ * built-in solvers.
+ *
+ * @param[in,out] mesh the handle
+ * @param[in] solve the callback, or NULL
+ * @param[in] user_data passed back to every call
+ * @return HOC_OK or HOC_ERROR_NULL_POINTER
+ */
+HocStatus hoc_mesh_set_linear_solver(HocMesh *mesh, HocLinearSolverFn solve, void *user_data);
 
 /**
  * Number of worker threads of this handle's own pool (0 = one per core).
