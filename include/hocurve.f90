@@ -12,7 +12,8 @@
 !> - counts are integer(c_size_t), passed by value;
 !> - strings come back as type(c_ptr): use hoc_string(ptr) to get a Fortran string;
 !> - a projector is a bind(C) function with the interface hoc_project_fn,
-!>   passed as c_funloc(f); a progress callback has the interface hoc_progress_fn.
+!>   passed as c_funloc(f); a progress callback has the interface hoc_progress_fn,
+!>   a linear solver (hoc_mesh_set_linear_solver) the interface hoc_linear_solver_fn.
 module hocurve
   use, intrinsic :: iso_c_binding
   implicit none
@@ -88,8 +89,23 @@ module hocurve
       integer(c_int), value :: stage, step, total
       integer(c_int) :: status
     end function hoc_progress_fn
+
+    !> HocLinearSolverFn: solve A x = b, A the n x n reduced symmetric matrix in full CSR form
+    !> (both triangles, 0-based row_ptr(n+1) and col_idx(row_ptr(n+1)), sorted columns,
+    !> values alongside); x holds the initial guess on entry and the solution on return.
+    !> The arrays are valid only during the call. Return 0 on success.
+    function hoc_linear_solver_fn(user_data, n, row_ptr, col_idx, values, rhs, x) &
+        bind(C) result(status)
+      import :: c_ptr, c_int, c_int64_t, c_double
+      type(c_ptr), value :: user_data
+      integer(c_int64_t), value :: n
+      integer(c_int64_t), intent(in) :: row_ptr(*), col_idx(*)
+      real(c_double), intent(in) :: values(*), rhs(*)
+      real(c_double), intent(inout) :: x(*)
+      integer(c_int) :: status
+    end function hoc_linear_solver_fn
   end interface
-  public :: hoc_project_fn, hoc_progress_fn
+  public :: hoc_project_fn, hoc_progress_fn, hoc_linear_solver_fn
 
   interface
     function hoc_mesh_create(dim, n_vertices, coords, n_cells, cells, mesh) &
@@ -149,6 +165,17 @@ module hocurve
       type(c_ptr), value :: user_data
       integer(c_int) :: status
     end function hoc_mesh_set_progress
+
+    !> fn: c_funloc of a bind(C) function with interface hoc_linear_solver_fn, or
+    !> c_null_funptr to restore the built-in solvers.
+    function hoc_mesh_set_linear_solver(mesh, fn, user_data) &
+        bind(C, name="hoc_mesh_set_linear_solver") result(status)
+      import :: c_int, c_ptr, c_funptr
+      type(c_ptr), value :: mesh
+      type(c_funptr), value :: fn
+      type(c_ptr), value :: user_data
+      integer(c_int) :: status
+    end function hoc_mesh_set_linear_solver
 
     function hoc_mesh_set_threads(mesh, n_threads) bind(C, name="hoc_mesh_set_threads") result(status)
       import :: c_int, c_ptr
@@ -290,7 +317,8 @@ module hocurve
   end interface
 
   public :: hoc_mesh_create, hoc_mesh_destroy, hoc_mesh_set_boundary, hoc_mesh_set_feature_edges, &
-            hoc_mesh_set_projector, hoc_mesh_set_progress, hoc_mesh_set_threads, hoc_mesh_set_order, &
+            hoc_mesh_set_projector, hoc_mesh_set_progress, hoc_mesh_set_linear_solver, &
+            hoc_mesh_set_threads, hoc_mesh_set_order, &
             hoc_mesh_set_material, hoc_mesh_set_formulation, hoc_mesh_set_newton, hoc_mesh_set_fibres, &
             hoc_mesh_run_increments, &
             hoc_mesh_quality, hoc_mesh_cell_quality, hoc_mesh_node_count, hoc_mesh_cell_count, &

@@ -6,7 +6,7 @@
  * - Every method mirrors one hoc_mesh_* function and throws hocurve::Error
  *   (a std::runtime_error carrying the HocStatus and the handle's last-error
  *   message) when the status is not HOC_OK.
- * - The projector and progress callbacks are std::function objects; the mesh
+ * - The projector, progress and linear-solver callbacks are std::function objects; the mesh
  *   keeps them alive at a stable address and hands that address to the C ABI
  *   as user_data. An exception thrown by a callback never crosses into the
  *   library: it stops the run, and run_increments() rethrows it.
@@ -65,6 +65,11 @@ using Projector =
     std::function<int(int entity_dim, int entity_tag, std::size_t n, const double *in, double *out)>;
 /** Called during a run; return 0 to continue, nonzero to cancel. */
 using Progress = std::function<int(int stage, int step, int total)>;
+/** Solves A x = b, A the n x n reduced symmetric matrix in full CSR form (both triangles,
+ *  0-based, sorted columns); x holds the initial guess on entry. 0 = success. See
+ *  HocLinearSolverFn in hocurve.h. */
+using LinearSolver = std::function<int(int64_t n, const int64_t *row_ptr, const int64_t *col_idx,
+                                       const double *values, const double *rhs, double *x)>;
 
 /** The library's version string. */
 inline std::string version() { return hoc_version(); }
@@ -82,6 +87,7 @@ namespace detail {
 struct Callbacks {
   Projector projector;
   Progress progress;
+  LinearSolver linear_solver;
   std::exception_ptr pending;  // first exception a callback threw during a run
 
   static int project(void *user, int dim, int tag, std::size_t n, const double *in, double *out) {
@@ -100,6 +106,16 @@ struct Callbacks {
     } catch (...) {
       if (!self->pending) self->pending = std::current_exception();
       return 1;
+    }
+  }
+  static int solve(void *user, int64_t n, const int64_t *row_ptr, const int64_t *col_idx,
+                   const double *values, const double *rhs, double *x) {
+    auto *self = static_cast<Callbacks *>(user);
+    try {
+      return self->linear_solver(n, row_ptr, col_idx, values, rhs, x);
+    } catch (...) {
+      if (!self->pending) self->pending = std::current_exception();
+      return -1;
     }
   }
 };
@@ -186,6 +202,16 @@ class Mesh {
       check(hoc_mesh_set_progress(mesh_, &detail::Callbacks::progress_cb, callbacks_.get()), mesh_);
     else
       check(hoc_mesh_set_progress(mesh_, nullptr, nullptr), mesh_);
+  }
+  /** Sets (or, with an empty function, clears: back to the built-in solvers) the host's
+   *  linear solver for every system of a run. */
+  void set_linear_solver(LinearSolver fn) {
+    ensure_callbacks();
+    callbacks_->linear_solver = std::move(fn);
+    if (callbacks_->linear_solver)
+      check(hoc_mesh_set_linear_solver(mesh_, &detail::Callbacks::solve, callbacks_.get()), mesh_);
+    else
+      check(hoc_mesh_set_linear_solver(mesh_, nullptr, nullptr), mesh_);
   }
   /** 0 = all cores. */
   void set_threads(int n_threads) { check(hoc_mesh_set_threads(mesh_, n_threads), mesh_); }
