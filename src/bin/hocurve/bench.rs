@@ -57,7 +57,8 @@ fn bench_case(dim: usize, size: usize) -> Result<Case> {
 fn predicted_unknowns(case: &Case, p: usize) -> Result<usize> {
     let mesh = &case.mesh;
     let topo = Topology::new(mesh)?;
-    let (e, f, c) = (p - 1, (p - 1) * (p.saturating_sub(2)) / 2, (p - 1) * p.saturating_sub(2) * p.saturating_sub(3) / 6);
+    let (e, f, c) =
+        (p - 1, (p - 1) * (p.saturating_sub(2)) / 2, (p - 1) * p.saturating_sub(2) * p.saturating_sub(3) / 6);
     let boundary_vertices = topo.boundary_vertex.iter().filter(|&&b| b).count();
     let interior = if mesh.dim == 2 {
         let boundary_edges = topo.boundary_facets.len();
@@ -373,28 +374,66 @@ pub fn loglog_slope(points: &[(f64, f64)]) -> Option<f64> {
 /// and timer resolution dominate.
 pub const FIT_MIN_SECONDS: f64 = 0.01;
 
-/// Per (dim, p): (dim, p, number of points, solve exponent, total exponent).
-pub fn exponents(rows: &[Row]) -> Vec<(usize, usize, usize, Option<f64>, Option<f64>)> {
+/// Measured exponents of one (dim, p) series.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Exponents {
+    pub dim: usize,
+    pub order: usize,
+    /// Runs in the fit of the total time.
+    pub points: usize,
+    /// Slopes over every run with t >= [`FIT_MIN_SECONDS`].
+    pub solve: Option<f64>,
+    pub total: Option<f64>,
+    /// Slopes between the two largest such runs (the local exponent).
+    pub solve_last: Option<f64>,
+    pub total_last: Option<f64>,
+}
+
+/// The exponents of each (dim, p) series in `rows`, in order of appearance.
+pub fn exponents(rows: &[Row]) -> Vec<Exponents> {
     let mut keys: Vec<(usize, usize)> = rows.iter().map(|r| (r.dim, r.order)).collect();
     keys.dedup();
     keys.into_iter()
-        .map(|(d, p)| {
-            let ok: Vec<&Row> = rows.iter().filter(|r| r.dim == d && r.order == p && r.failure.is_none()).collect();
-            let fit = |t: fn(&Row) -> f64| {
-                let pts: Vec<(f64, f64)> =
-                    ok.iter().filter(|r| t(r) >= FIT_MIN_SECONDS).map(|r| (r.unknowns as f64, t(r))).collect();
-                (pts.len(), loglog_slope(&pts))
+        .map(|(dim, order)| {
+            let ok: Vec<&Row> =
+                rows.iter().filter(|r| r.dim == dim && r.order == order && r.failure.is_none()).collect();
+            let points = |t: fn(&Row) -> f64| -> Vec<(f64, f64)> {
+                ok.iter().filter(|r| t(r) >= FIT_MIN_SECONDS).map(|r| (r.unknowns as f64, t(r))).collect()
             };
-            let (n, total) = fit(|r| r.total);
-            let (_, solve) = fit(|r| r.solve);
-            (d, p, n, solve, total)
+            let last2 = |p: &[(f64, f64)]| loglog_slope(&p[p.len().saturating_sub(2)..]);
+            let (solve, total) = (points(|r| r.solve), points(|r| r.total));
+            Exponents {
+                dim,
+                order,
+                points: total.len(),
+                solve: loglog_slope(&solve),
+                total: loglog_slope(&total),
+                solve_last: last2(&solve),
+                total_last: last2(&total),
+            }
         })
         .collect()
 }
 
 const HEADER: [&str; 18] = [
-    "dim", "p", "size", "cells", "nodes", "unknowns", "solver", "iters", "elev+proj", "assembly", "setup", "solve",
-    "quality", "total", "wall", "peak_MB", "min_Q3", "status",
+    "dim",
+    "p",
+    "size",
+    "cells",
+    "nodes",
+    "unknowns",
+    "solver",
+    "iters",
+    "elev+proj",
+    "assembly",
+    "setup",
+    "solve",
+    "quality",
+    "total",
+    "wall",
+    "peak_MB",
+    "min_Q3",
+    "status",
 ];
 const WIDTHS: [usize; 18] = [3, 2, 5, 8, 9, 9, 7, 6, 9, 9, 8, 9, 8, 9, 9, 8, 7, 0];
 
@@ -443,13 +482,24 @@ pub fn row_line(r: &Row) -> String {
 /// The exponent lines that follow the table.
 pub fn exponent_lines(rows: &[Row]) -> String {
     let mut s = format!(
-        "\nmeasured exponents: slope of ln t vs ln N (N = unknowns; runs with t >= {FIT_MIN_SECONDS} s)\n\
-         {:>3} {:>2} {:>6} {:>10} {:>10}\n",
-        "dim", "p", "points", "solve", "total"
+        "\nmeasured exponents: least-squares slope of ln t vs ln N (N = unknowns) over the runs with \
+         t >= {FIT_MIN_SECONDS} s, and between the two largest of them (last2)\n\
+         {:>3} {:>2} {:>6} {:>7} {:>7} {:>12} {:>12}\n",
+        "dim", "p", "points", "solve", "total", "solve_last2", "total_last2"
     );
     let e = |x: Option<f64>| x.map_or("-".to_string(), |v| format!("{v:.2}"));
-    for (d, p, n, solve, total) in exponents(rows) {
-        let _ = writeln!(s, "{d:>3} {p:>2} {n:>6} {:>10} {:>10}", e(solve), e(total));
+    for x in exponents(rows) {
+        let _ = writeln!(
+            s,
+            "{:>3} {:>2} {:>6} {:>7} {:>7} {:>12} {:>12}",
+            x.dim,
+            x.order,
+            x.points,
+            e(x.solve),
+            e(x.total),
+            e(x.solve_last),
+            e(x.total_last)
+        );
     }
     s
 }
