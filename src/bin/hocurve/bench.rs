@@ -27,9 +27,9 @@ use crate::{write_text_atomic, Args};
 
 /// Largest unknown count of a series by default: the full table takes about
 /// ten minutes on two cores with the direct solver.
-pub const DEFAULT_MAX_DOFS: usize = 150_000;
+pub const DEFAULT_MAX_DOFS: usize = 210_000;
 /// The same for `--quick` (about a minute).
-pub const QUICK_MAX_DOFS: usize = 20_000;
+pub const QUICK_MAX_DOFS: usize = 60_000;
 
 /// Boundary-layer cells and stretching of the 2D series (as in `hocurve demo`).
 const LAYERS_2D: usize = 8;

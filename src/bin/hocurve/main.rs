@@ -67,8 +67,8 @@ USAGE:
       solver, mean iterations per solve, seconds of elevate+project, assembly,
       setup, solve, quality, total, peak memory in MB, min Q3), then the
       measured exponents of solve and total time against unknowns. A series
-      stops before its unknowns pass --max-dofs (default 150000, about ten
-      minutes on two cores; --quick: orders 2,4 up to 20000, about a minute).
+      stops before its unknowns pass --max-dofs (default 210000, about ten
+      minutes on two cores; --quick: orders 2,4 up to 60000, under a minute).
 ";
 
 fn main() -> ExitCode {
