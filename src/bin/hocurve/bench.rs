@@ -1,0 +1,625 @@
+//! `hocurve bench`: time and memory of ILE curving against problem size.
+//!
+//! For each dimension and order, a series of built-in cases of growing size
+//! (2D: [`cases::cylinder_channel_2d`] with more divisions around the
+//! cylinder; 3D: [`cases::sphere_in_box_3d`] with more divisions per cube
+//! face and as many radial layers) is curved, each case in a child process
+//! (`hocurve bench-one`, hidden) so that its peak memory (VmHWM) is its own
+//! and a crash or an out-of-memory kill becomes a failed row, not a failed
+//! table. A series stops before the first case whose unknowns, counted from
+//! the linear mesh's topology before it runs, exceed `--max-dofs`.
+//!
+//! After the table come the measured exponents: the least-squares slope of
+//! ln t against ln N (N = unknowns) for the solve phase and the whole run.
+
+use std::fmt::Write as _;
+use std::path::Path;
+use std::process::Command;
+use std::time::Instant;
+
+use hocurve::cases::{self, Case};
+use hocurve::curve::{curve, CurveOptions, Formulation};
+use hocurve::mesh::Topology;
+use hocurve::solver::SolverChoice;
+use hocurve::{Error, Result};
+
+use crate::{write_text_atomic, Args};
+
+/// Largest unknown count of a series by default: the full table takes about
+/// ten minutes on two cores with the direct solver.
+pub const DEFAULT_MAX_DOFS: usize = 210_000;
+/// The same for `--quick` (about a minute).
+pub const QUICK_MAX_DOFS: usize = 60_000;
+
+/// Boundary-layer cells and stretching of the 2D series (as in `hocurve demo`).
+const LAYERS_2D: usize = 8;
+const STRETCHING_2D: f64 = 100.0;
+
+/// Size parameter ladders: cells grow by about 1.5–2.5× a step in 2D
+/// (divisions around the cylinder) and by (n+1)³/n³ in 3D (divisions per
+/// cube-sphere face edge, as many radial layers; 72·n³ tetrahedra).
+const LADDER_2D: &[usize] = &[16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024, 1536, 2048];
+const LADDER_3D: &[usize] = &[1, 2, 3, 4, 5, 6, 7, 8, 10, 12, 14, 16, 20, 24];
+
+/// The built-in case of a series at size parameter `size`.
+fn bench_case(dim: usize, size: usize) -> Result<Case> {
+    match dim {
+        2 => Ok(cases::cylinder_channel_2d(size, LAYERS_2D, STRETCHING_2D)),
+        3 => Ok(cases::sphere_in_box_3d(size, size)),
+        _ => Err(Error::InvalidInput(format!("bench: dimension must be 2 or 3, got {dim}"))),
+    }
+}
+
+/// Unknowns of the ILE system at order `p` on `case`: dim × (nodes not on the
+/// boundary), since every boundary node is prescribed. Counted from the
+/// linear topology: interior vertices, (p−1) nodes per interior edge,
+/// (p−1)(p−2)/2 per interior face and (p−1)(p−2)(p−3)/6 per tetrahedron.
+fn predicted_unknowns(case: &Case, p: usize) -> Result<usize> {
+    let mesh = &case.mesh;
+    let topo = Topology::new(mesh)?;
+    let (e, f, c) =
+        (p - 1, (p - 1) * (p.saturating_sub(2)) / 2, (p - 1) * p.saturating_sub(2) * p.saturating_sub(3) / 6);
+    let boundary_vertices = topo.boundary_vertex.iter().filter(|&&b| b).count();
+    let interior = if mesh.dim == 2 {
+        let boundary_edges = topo.boundary_facets.len();
+        (mesh.n_vertices() - boundary_vertices) + (topo.edges.len() - boundary_edges) * e + mesh.n_cells() * f
+    } else {
+        let mut boundary_edges = std::collections::HashSet::new();
+        for &face in &topo.boundary_facets {
+            let [a, b, c] = topo.faces[face];
+            boundary_edges.extend([[a, b], [a, c], [b, c]]);
+        }
+        let boundary_faces = topo.boundary_facets.len();
+        (mesh.n_vertices() - boundary_vertices)
+            + (topo.edges.len() - boundary_edges.len()) * e
+            + (topo.faces.len() - boundary_faces) * f
+            + mesh.n_cells() * c
+    };
+    Ok(mesh.dim * interior)
+}
+
+/// One row of the table: what `bench-one` printed, or why it failed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Row {
+    pub dim: usize,
+    pub order: usize,
+    pub size: usize,
+    pub cells: usize,
+    pub nodes: usize,
+    pub unknowns: usize,
+    pub solver: String,
+    /// Mean Krylov iterations per linear solve; `None` for a direct solver.
+    pub iterations: Option<f64>,
+    pub elevate_project: f64,
+    pub assembly: f64,
+    pub setup: f64,
+    pub solve: f64,
+    pub quality: f64,
+    pub total: f64,
+    /// Wall time of the child process seen by the parent (includes building
+    /// the case and starting the process).
+    pub wall: f64,
+    pub peak_mb: f64,
+    pub min_q3: f64,
+    /// `Some(reason)` for a failed run (then the numbers above are NaN or 0).
+    pub failure: Option<String>,
+}
+
+impl Row {
+    /// The machine-readable line printed by `bench-one`: `key=value` pairs
+    /// separated by spaces, after the word `bench-one`.
+    fn to_line(&self) -> String {
+        format!(
+            "bench-one dim={} p={} size={} cells={} nodes={} unknowns={} solver={} iterations={} elevate_project={:e} \
+             assembly={:e} setup={:e} solve={:e} quality={:e} total={:e} peak_mb={:.1} min_q3={}",
+            self.dim,
+            self.order,
+            self.size,
+            self.cells,
+            self.nodes,
+            self.unknowns,
+            self.solver,
+            self.iterations.map_or("-".to_string(), |i| format!("{i:.1}")),
+            self.elevate_project,
+            self.assembly,
+            self.setup,
+            self.solve,
+            self.quality,
+            self.total,
+            self.peak_mb,
+            self.min_q3
+        )
+    }
+
+    /// Parse the line of [`Row::to_line`] (the wall time is the parent's to fill).
+    fn from_line(line: &str) -> Option<Row> {
+        let rest = line.trim().strip_prefix("bench-one ")?;
+        let kv: Vec<(&str, &str)> = rest.split_whitespace().filter_map(|t| t.split_once('=')).collect();
+        let get = |k: &str| kv.iter().find(|(n, _)| *n == k).map(|(_, v)| *v);
+        let int = |k: &str| get(k)?.parse::<usize>().ok();
+        let real = |k: &str| get(k)?.parse::<f64>().ok();
+        Some(Row {
+            dim: int("dim")?,
+            order: int("p")?,
+            size: int("size")?,
+            cells: int("cells")?,
+            nodes: int("nodes")?,
+            unknowns: int("unknowns")?,
+            solver: get("solver")?.to_string(),
+            iterations: match get("iterations")? {
+                "-" => None,
+                v => Some(v.parse().ok()?),
+            },
+            elevate_project: real("elevate_project")?,
+            assembly: real("assembly")?,
+            setup: real("setup")?,
+            solve: real("solve")?,
+            quality: real("quality")?,
+            total: real("total")?,
+            wall: f64::NAN,
+            peak_mb: real("peak_mb")?,
+            min_q3: real("min_q3")?,
+            failure: None,
+        })
+    }
+
+    fn failed(dim: usize, order: usize, size: usize, unknowns: usize, solver: &str, wall: f64, why: String) -> Row {
+        Row {
+            dim,
+            order,
+            size,
+            cells: 0,
+            nodes: 0,
+            unknowns,
+            solver: solver.to_string(),
+            iterations: None,
+            elevate_project: f64::NAN,
+            assembly: f64::NAN,
+            setup: f64::NAN,
+            solve: f64::NAN,
+            quality: f64::NAN,
+            total: f64::NAN,
+            wall,
+            peak_mb: f64::NAN,
+            min_q3: f64::NAN,
+            failure: Some(why),
+        }
+    }
+}
+
+/// Peak resident set size of this process (VmHWM), in MB; NaN where
+/// /proc is not available.
+fn peak_rss_mb() -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+            let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+            Some(kb / 1024.0)
+        })
+        .unwrap_or(f64::NAN)
+}
+
+/// `hocurve bench-one --dim D --order P --size K [--increments N] [--solver S]`:
+/// curve one case and print one [`Row::to_line`] on stdout.
+pub fn cmd_bench_one(argv: &[String]) -> Result<()> {
+    let args = Args::parse(argv, &["dim", "order", "size", "increments", "solver"])?;
+    let dim: usize = args.number("dim", 2)?;
+    let size: usize = args.number("size", LADDER_2D[0])?;
+    let case = bench_case(dim, size)?;
+    let mut opts = CurveOptions {
+        order: args.number("order", 2)?,
+        formulation: Formulation::Ile,
+        increments: args.number("increments", 1)?,
+        ..Default::default()
+    };
+    if let Some(s) = args.get("solver") {
+        opts.solver = SolverChoice::parse(s)?;
+    }
+    hocurve::curve::validate_options(&opts)?;
+    let mut mesh = case.mesh.clone();
+    mesh.retain_tags(|d, t| case.projector.get(d, t).is_some());
+    let c = curve(&mesh, &case.projector, &opts, &mut |_| true)?;
+    let r = &c.report;
+    let t = &r.timings;
+    let iterative = r.solver_iterations.iter().any(|&i| i > 0);
+    let row = Row {
+        dim,
+        order: r.order,
+        size,
+        cells: r.cells,
+        nodes: r.nodes,
+        unknowns: r.dofs,
+        solver: r.linear_solver.to_string(),
+        iterations: iterative
+            .then(|| r.solver_iterations.iter().sum::<usize>() as f64 / r.solver_iterations.len() as f64),
+        elevate_project: t.elevate + t.project,
+        assembly: t.assembly,
+        setup: t.setup,
+        solve: t.solve,
+        quality: t.quality,
+        total: t.total,
+        wall: f64::NAN,
+        peak_mb: peak_rss_mb(),
+        min_q3: r.quality.min_q3,
+        failure: None,
+    };
+    println!("{}", row.to_line());
+    Ok(())
+}
+
+/// What `hocurve bench` runs.
+#[derive(Debug, Clone)]
+pub struct BenchConfig {
+    pub dims: Vec<usize>,
+    pub orders: Vec<usize>,
+    pub max_dofs: usize,
+    pub increments: usize,
+    pub solver: String,
+}
+
+fn parse_list(flag: &str, s: &str) -> Result<Vec<usize>> {
+    s.split(',')
+        .map(|v| v.trim().parse().map_err(|_| Error::InvalidInput(format!("--{flag}: '{v}' is not an integer"))))
+        .collect()
+}
+
+impl BenchConfig {
+    fn from_args(args: &Args, quick: bool) -> Result<BenchConfig> {
+        let c = BenchConfig {
+            dims: parse_list("dims", args.get("dims").unwrap_or("2,3"))?,
+            orders: parse_list("orders", args.get("orders").unwrap_or(if quick { "2,4" } else { "2,3,4,5,6" }))?,
+            max_dofs: args.number("max-dofs", if quick { QUICK_MAX_DOFS } else { DEFAULT_MAX_DOFS })?,
+            increments: args.number("increments", 1)?,
+            solver: args.get("solver").unwrap_or("auto").to_string(),
+        };
+        if let Some(d) = c.dims.iter().find(|&&d| d != 2 && d != 3) {
+            return Err(Error::InvalidInput(format!("--dims: dimension must be 2 or 3, got {d}")));
+        }
+        if let Some(p) = c.orders.iter().find(|&&p| !(2..=10).contains(&p)) {
+            return Err(Error::InvalidInput(format!("--orders: order must be in 2..=10, got {p}")));
+        }
+        if c.increments == 0 {
+            return Err(Error::InvalidInput("--increments must be at least 1".into()));
+        }
+        SolverChoice::parse(&c.solver)?;
+        Ok(c)
+    }
+}
+
+/// Run one case in a child process (this executable, `bench-one`).
+fn run_child(cfg: &BenchConfig, dim: usize, order: usize, size: usize, unknowns: usize) -> Row {
+    let start = Instant::now();
+    let exe = match std::env::current_exe() {
+        Ok(e) => e,
+        Err(e) => return Row::failed(dim, order, size, unknowns, &cfg.solver, 0.0, format!("current_exe: {e}")),
+    };
+    let out = Command::new(exe)
+        .args(["bench-one", "--dim", &dim.to_string(), "--order", &order.to_string(), "--size", &size.to_string()])
+        .args(["--increments", &cfg.increments.to_string(), "--solver", &cfg.solver])
+        .output();
+    let wall = start.elapsed().as_secs_f64();
+    let out = match out {
+        Ok(o) => o,
+        Err(e) => return Row::failed(dim, order, size, unknowns, &cfg.solver, wall, format!("spawn: {e}")),
+    };
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let row = stdout.lines().find_map(Row::from_line);
+    match (out.status.success(), row) {
+        (true, Some(mut r)) => {
+            r.wall = wall;
+            r
+        }
+        (ok, _) => {
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            let last = stderr.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("").trim().to_string();
+            let why = if ok {
+                "no result line".to_string()
+            } else {
+                use std::os::unix::process::ExitStatusExt;
+                match out.status.signal() {
+                    Some(9) => "killed (signal 9, out of memory?)".to_string(),
+                    Some(s) => format!("signal {s}"),
+                    None => format!("exit {}: {last}", out.status.code().unwrap_or(-1)),
+                }
+            };
+            Row::failed(dim, order, size, unknowns, &cfg.solver, wall, why)
+        }
+    }
+}
+
+/// Run every series; `on_row` sees each row as it completes.
+pub fn run(cfg: &BenchConfig, mut on_row: impl FnMut(&Row)) -> Result<Vec<Row>> {
+    let mut rows = Vec::new();
+    for &dim in &cfg.dims {
+        for &p in &cfg.orders {
+            let ladder = if dim == 2 { LADDER_2D } else { LADDER_3D };
+            for &size in ladder {
+                let unknowns = predicted_unknowns(&bench_case(dim, size)?, p)?;
+                if unknowns > cfg.max_dofs {
+                    break;
+                }
+                let row = run_child(cfg, dim, p, size, unknowns);
+                on_row(&row);
+                let failed = row.failure.is_some();
+                rows.push(row);
+                if failed {
+                    break;
+                }
+            }
+        }
+    }
+    Ok(rows)
+}
+
+/// Least-squares slope of ln y against ln x over the points with x, y > 0
+/// (finite); `None` with fewer than two distinct x.
+pub fn loglog_slope(points: &[(f64, f64)]) -> Option<f64> {
+    let pts: Vec<(f64, f64)> = points
+        .iter()
+        .filter(|(x, y)| x.is_finite() && y.is_finite() && *x > 0.0 && *y > 0.0)
+        .map(|(x, y)| (x.ln(), y.ln()))
+        .collect();
+    let n = pts.len() as f64;
+    if pts.len() < 2 {
+        return None;
+    }
+    let (mx, my) = (pts.iter().map(|p| p.0).sum::<f64>() / n, pts.iter().map(|p| p.1).sum::<f64>() / n);
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    (sxx > 1e-12).then(|| sxy / sxx)
+}
+
+/// Smallest run time that enters an exponent fit: below it, process start-up
+/// and timer resolution dominate.
+pub const FIT_MIN_SECONDS: f64 = 0.01;
+
+/// Measured exponents of one (dim, p) series.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Exponents {
+    pub dim: usize,
+    pub order: usize,
+    /// Runs in the fit of the total time.
+    pub points: usize,
+    /// Slopes over every run with t >= [`FIT_MIN_SECONDS`].
+    pub solve: Option<f64>,
+    pub total: Option<f64>,
+    /// Slopes between the two largest such runs (the local exponent).
+    pub solve_last: Option<f64>,
+    pub total_last: Option<f64>,
+}
+
+/// The exponents of each (dim, p) series in `rows`, in order of appearance.
+pub fn exponents(rows: &[Row]) -> Vec<Exponents> {
+    let mut keys: Vec<(usize, usize)> = rows.iter().map(|r| (r.dim, r.order)).collect();
+    keys.dedup();
+    keys.into_iter()
+        .map(|(dim, order)| {
+            let ok: Vec<&Row> =
+                rows.iter().filter(|r| r.dim == dim && r.order == order && r.failure.is_none()).collect();
+            let points = |t: fn(&Row) -> f64| -> Vec<(f64, f64)> {
+                ok.iter().filter(|r| t(r) >= FIT_MIN_SECONDS).map(|r| (r.unknowns as f64, t(r))).collect()
+            };
+            let last2 = |p: &[(f64, f64)]| loglog_slope(&p[p.len().saturating_sub(2)..]);
+            let (solve, total) = (points(|r| r.solve), points(|r| r.total));
+            Exponents {
+                dim,
+                order,
+                points: total.len(),
+                solve: loglog_slope(&solve),
+                total: loglog_slope(&total),
+                solve_last: last2(&solve),
+                total_last: last2(&total),
+            }
+        })
+        .collect()
+}
+
+const HEADER: [&str; 18] = [
+    "dim",
+    "p",
+    "size",
+    "cells",
+    "nodes",
+    "unknowns",
+    "solver",
+    "iters",
+    "elev+proj",
+    "assembly",
+    "setup",
+    "solve",
+    "quality",
+    "total",
+    "wall",
+    "peak_MB",
+    "min_Q3",
+    "status",
+];
+const WIDTHS: [usize; 18] = [3, 2, 5, 8, 9, 9, 7, 6, 9, 9, 8, 9, 8, 9, 9, 8, 7, 0];
+
+fn secs(x: f64) -> String {
+    if x.is_finite() {
+        format!("{x:.3}")
+    } else {
+        "-".into()
+    }
+}
+
+fn cells_of(r: &Row) -> [String; 18] {
+    let int = |v: usize| if r.failure.is_some() && v == 0 { "-".to_string() } else { v.to_string() };
+    [
+        r.dim.to_string(),
+        r.order.to_string(),
+        r.size.to_string(),
+        int(r.cells),
+        int(r.nodes),
+        r.unknowns.to_string(),
+        r.solver.clone(),
+        r.iterations.map_or("-".into(), |i| format!("{i:.1}")),
+        secs(r.elevate_project),
+        secs(r.assembly),
+        secs(r.setup),
+        secs(r.solve),
+        secs(r.quality),
+        secs(r.total),
+        secs(r.wall),
+        if r.peak_mb.is_finite() { format!("{:.0}", r.peak_mb) } else { "-".into() },
+        if r.min_q3.is_finite() { format!("{:.3}", r.min_q3) } else { "-".into() },
+        r.failure.as_ref().map_or("ok".to_string(), |f| format!("FAILED: {f}")),
+    ]
+}
+
+/// The table header line.
+pub fn header_line() -> String {
+    HEADER.iter().zip(WIDTHS).map(|(h, w)| format!("{h:>w$}")).collect::<Vec<_>>().join(" ")
+}
+
+/// One table line.
+pub fn row_line(r: &Row) -> String {
+    cells_of(r).iter().zip(WIDTHS).map(|(c, w)| format!("{c:>w$}")).collect::<Vec<_>>().join(" ")
+}
+
+/// The exponent lines that follow the table.
+pub fn exponent_lines(rows: &[Row]) -> String {
+    let mut s = format!(
+        "\nmeasured exponents: least-squares slope of ln t vs ln N (N = unknowns) over the runs with \
+         t >= {FIT_MIN_SECONDS} s, and between the two largest of them (last2)\n\
+         {:>3} {:>2} {:>6} {:>7} {:>7} {:>12} {:>12}\n",
+        "dim", "p", "points", "solve", "total", "solve_last2", "total_last2"
+    );
+    let e = |x: Option<f64>| x.map_or("-".to_string(), |v| format!("{v:.2}"));
+    for x in exponents(rows) {
+        let _ = writeln!(
+            s,
+            "{:>3} {:>2} {:>6} {:>7} {:>7} {:>12} {:>12}",
+            x.dim,
+            x.order,
+            x.points,
+            e(x.solve),
+            e(x.total),
+            e(x.solve_last),
+            e(x.total_last)
+        );
+    }
+    s
+}
+
+/// The table as CSV (one header line, one line per row; seconds as given).
+pub fn csv(rows: &[Row]) -> String {
+    let mut s = "dim,p,size,cells,nodes,unknowns,solver,iterations,elevate_project_s,assembly_s,setup_s,solve_s,\
+                 quality_s,total_s,wall_s,peak_mb,min_q3,status\n"
+        .to_string();
+    let f = |x: f64| if x.is_finite() { format!("{x}") } else { String::new() };
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            r.dim,
+            r.order,
+            r.size,
+            r.cells,
+            r.nodes,
+            r.unknowns,
+            r.solver,
+            r.iterations.map_or(String::new(), |i| format!("{i}")),
+            f(r.elevate_project),
+            f(r.assembly),
+            f(r.setup),
+            f(r.solve),
+            f(r.quality),
+            f(r.total),
+            f(r.wall),
+            f(r.peak_mb),
+            f(r.min_q3),
+            r.failure.as_ref().map_or("ok".to_string(), |w| format!("\"failed: {}\"", w.replace('"', "'")))
+        );
+    }
+    s
+}
+
+/// `hocurve bench [--quick] [--dims 2,3] [--orders 2,3,4,5,6] [--max-dofs N]
+/// [--increments N] [--solver S] [--csv FILE]`.
+pub fn cmd_bench(argv: &[String]) -> Result<()> {
+    let quick = argv.iter().any(|a| a == "--quick");
+    let rest: Vec<String> = argv.iter().filter(|a| *a != "--quick").cloned().collect();
+    let args = Args::parse(&rest, &["dims", "orders", "max-dofs", "increments", "solver", "csv"])?;
+    if let Some(p) = args.positional.first() {
+        return Err(Error::InvalidInput(format!("bench takes no positional argument, got '{p}'")));
+    }
+    let cfg = BenchConfig::from_args(&args, quick)?;
+    let csv_path = args.get("csv").map(Path::new);
+    if let Some(p) = csv_path {
+        let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        if !dir.is_dir() {
+            return Err(Error::Io(format!("cannot write {}: directory {} does not exist", p.display(), dir.display())));
+        }
+    }
+    eprintln!(
+        "bench: ILE, {} increment(s), solver {}, dims {:?}, orders {:?}, up to {} unknowns; seconds per phase, \
+         each case in its own process",
+        cfg.increments, cfg.solver, cfg.dims, cfg.orders, cfg.max_dofs
+    );
+    let start = Instant::now();
+    println!("{}", header_line());
+    let rows = run(&cfg, |r| {
+        println!("{}", row_line(r));
+        let _ = std::io::Write::flush(&mut std::io::stdout());
+    })?;
+    print!("{}", exponent_lines(&rows));
+    eprintln!("bench: {} runs in {:.1} s", rows.len(), start.elapsed().as_secs_f64());
+    if let Some(p) = csv_path {
+        write_text_atomic(p, &csv(&rows))?;
+        eprintln!("wrote {}", p.display());
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn loglog_slope_recovers_a_power_law() {
+        let pts: Vec<(f64, f64)> = [1e3, 4e3, 1.6e4].iter().map(|&n: &f64| (n, 3e-6 * n.powf(1.5))).collect();
+        assert!((loglog_slope(&pts).unwrap() - 1.5).abs() < 1e-12);
+        assert_eq!(loglog_slope(&pts[..1]), None);
+    }
+
+    #[test]
+    fn row_line_round_trips() {
+        let r = Row {
+            dim: 3,
+            order: 4,
+            size: 2,
+            cells: 576,
+            nodes: 9000,
+            unknowns: 20000,
+            solver: "direct".into(),
+            iterations: None,
+            elevate_project: 0.01,
+            assembly: 0.5,
+            setup: 0.02,
+            solve: 1.25,
+            quality: 0.1,
+            total: 1.9,
+            wall: f64::NAN,
+            peak_mb: 123.4,
+            min_q3: 0.71,
+            failure: None,
+        };
+        let back = Row::from_line(&r.to_line()).unwrap();
+        assert_eq!(back.to_line(), r.to_line());
+    }
+
+    #[test]
+    fn predicted_unknowns_match_the_curved_report() {
+        for (dim, size, p) in [(2, 16, 3), (3, 1, 4), (3, 2, 2)] {
+            let case = bench_case(dim, size).unwrap();
+            let opts = CurveOptions { order: p, ..Default::default() };
+            let mut mesh = case.mesh.clone();
+            mesh.retain_tags(|d, t| case.projector.get(d, t).is_some());
+            let c = curve(&mesh, &case.projector, &opts, &mut |_| true).unwrap();
+            assert_eq!(predicted_unknowns(&case, p).unwrap(), c.report.dofs, "dim {dim} size {size} p {p}");
+        }
+    }
+}
