@@ -11,7 +11,7 @@ use crate::assembly::{assemble, color_cells, DofMap, ElementKernel, LinearElasti
 use crate::geometry::Projector;
 use crate::mapping::ElementCache;
 use crate::material::{make_material, LinearElastic, MaterialModel};
-use crate::mesh::{validate_and_orient, HighOrderMesh, LinearMesh, NodeConstraint, Topology};
+use crate::mesh::{remove_boundary_caps, validate_and_orient, HighOrderMesh, LinearMesh, NodeConstraint, Topology};
 use crate::quadrature::simplex_rule;
 use crate::quality::{self, ElementQuality, MeshQuality};
 use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
@@ -82,6 +82,10 @@ pub struct CurveOptions {
     pub fibres: Option<Vec<[f64; 3]>>,
     /// Linear solver of every increment (default: chosen by size).
     pub solver: SolverChoice,
+    /// Remove the boundary caps of a 3D mesh before curving (default on): tets
+    /// with two faces on one smooth surface, which no curving keeps valid
+    /// (see [`crate::mesh::caps`]). The curved mesh then has fewer cells.
+    pub remove_caps: bool,
 }
 
 impl Default for CurveOptions {
@@ -100,6 +104,7 @@ impl Default for CurveOptions {
             max_iterations: 30,
             fibres: None,
             solver: SolverChoice::Auto,
+            remove_caps: true,
         }
     }
 }
@@ -149,6 +154,10 @@ pub struct CurveReport {
     pub cells: usize,
     /// Cells whose input orientation was negative and was flipped.
     pub reoriented_cells: usize,
+    /// Boundary caps removed before curving (`CurveOptions::remove_caps`).
+    pub removed_caps: usize,
+    /// For each cell of the curved mesh, its index among the input cells.
+    pub input_cell: Vec<usize>,
     pub projected_nodes: usize,
     /// Largest distance between a straight node and its projection.
     pub max_projection_distance: f64,
@@ -224,6 +233,9 @@ pub fn curve(
     // 1-2. Validate and elevate.
     tick(Stage::Elevate, 0, 1)?;
     let (linear, reoriented) = validate_and_orient(linear)?;
+    let n_input_cells = linear.n_cells();
+    let (linear, input_cell) =
+        if opts.remove_caps { remove_boundary_caps(&linear) } else { (linear, (0..n_input_cells).collect()) };
     let topo = Topology::new(&linear)?;
     let nodes = NodeSet::new(topo.simplex, opts.order, opts.spacing);
     let mut mesh = HighOrderMesh::elevate(&linear, &topo, &nodes, opts.spacing)?;
@@ -257,7 +269,10 @@ pub fn curve(
     let cache = ElementCache::new(&basis, &rule);
     let model = make_material(opts.material, opts.young, opts.poisson)?;
     let fibres = match &opts.fibres {
-        Some(f) => checked_fibres(f, mesh.n_cells())?,
+        Some(f) => {
+            let f = checked_fibres(f, n_input_cells)?;
+            input_cell.iter().map(|&c| f[c]).collect()
+        }
         None => default_fibres(&linear, &topo),
     };
     let stepping = Stepping {
@@ -303,6 +318,8 @@ pub fn curve(
         dofs: solved.n_free,
         cells: mesh.n_cells(),
         reoriented_cells: reoriented,
+        removed_caps: n_input_cells - input_cell.len(),
+        input_cell,
         projected_nodes,
         max_projection_distance: max_dist,
         quality: q,

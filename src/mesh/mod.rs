@@ -3,9 +3,11 @@
 
 pub mod linear;
 
+pub mod caps;
 pub mod high_order;
 pub mod topology;
 
+pub use caps::remove_boundary_caps;
 pub use high_order::{HighOrderMesh, NodeConstraint};
 pub use linear::LinearMesh;
 pub use topology::{validate_and_orient, Topology};
