@@ -6,10 +6,15 @@
 //! factorisation for every new set of values on the same pattern.
 
 mod cholesky;
+mod iterative;
 mod lu;
+pub mod pcg;
+pub mod pmg;
 
 pub use cholesky::SparseCholesky;
+pub use iterative::{IterativeParams, IterativeSolver, FALLBACK_DIRECT_MAX_DOFS};
 pub use lu::try_lu_solve_in_place;
+pub use pmg::SparseRows;
 
 use crate::{Error, Result};
 
@@ -69,6 +74,8 @@ pub enum SolverChoice {
     Auto,
     /// Sparse Cholesky (LU when not positive definite).
     Direct,
+    /// PCG with a p-multigrid preconditioner ([`IterativeSolver`]).
+    Iterative,
 }
 
 /// Largest 3D system that [`SolverChoice::Auto`] solves directly.
@@ -79,6 +86,7 @@ impl SolverChoice {
         match self {
             SolverChoice::Auto => "auto",
             SolverChoice::Direct => "direct",
+            SolverChoice::Iterative => "iterative",
         }
     }
 
@@ -86,7 +94,8 @@ impl SolverChoice {
         match s.to_ascii_lowercase().as_str() {
             "auto" => Ok(SolverChoice::Auto),
             "direct" => Ok(SolverChoice::Direct),
-            _ => Err(Error::InvalidInput(format!("unknown linear solver '{s}' (expected auto or direct)"))),
+            "iterative" => Ok(SolverChoice::Iterative),
+            _ => Err(Error::InvalidInput(format!("unknown linear solver '{s}' (expected auto, direct or iterative)"))),
         }
     }
 }
