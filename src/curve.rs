@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use crate::assembly::{
-    assemble, color_cells, vertex_prolongation, DofMap, ElementKernel, LinearElasticKernel, MaterialKernel, TangentMode,
+    assemble, color_cells, multigrid_levels, DofMap, ElementKernel, LinearElasticKernel, MaterialKernel, TangentMode,
 };
 use crate::geometry::Projector;
 use crate::mapping::ElementCache;
@@ -359,8 +359,8 @@ fn make_solver(
         return Ok(Box::new(DirectSolver::try_new(pattern)?));
     }
     // The free dofs of a node are consecutive: nodal blocks for the smoother.
-    let coarse = (mesh.order > 1).then(|| vertex_prolongation(mesh, dofs));
-    Ok(Box::new(IterativeSolver::try_new(pattern, mesh.dim(), coarse, IterativeParams::default())?))
+    let levels = multigrid_levels(mesh, dofs);
+    Ok(Box::new(IterativeSolver::try_new(pattern, mesh.dim(), levels, IterativeParams::default())?))
 }
 
 fn euclid(v: &[f64]) -> f64 {

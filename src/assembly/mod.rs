@@ -22,7 +22,7 @@ use rayon::prelude::*;
 
 pub use hyperelastic::{MaterialKernel, MaterialWorkspace, TangentMode};
 pub use kernel::{KernelWorkspace, LinearElasticKernel};
-pub use transfer::vertex_prolongation;
+pub use transfer::multigrid_levels;
 
 use crate::mesh::{HighOrderMesh, NodeConstraint};
 use crate::solver::SymmetricCsc;

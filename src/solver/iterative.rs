@@ -2,7 +2,7 @@
 //! [`super::pmg`], with a direct fallback for indefinite systems.
 
 use super::pcg::{try_pcg, PcgParams, SymmetricOperator};
-use super::pmg::{Chebyshev, ChebyshevParams, CoarseLevel, SparseRows, TwoLevel};
+use super::pmg::{Chebyshev, ChebyshevParams, Hierarchy, SparseRows, VCycle};
 use super::{DirectSolver, LinearSolver, SolveStats, SymmetricCsc};
 use crate::{Error, Result};
 
@@ -41,45 +41,62 @@ impl Default for IterativeParams {
 pub struct IterativeSolver {
     op: SymmetricOperator,
     block: usize,
-    coarse: Option<CoarseLevel>,
+    coarse: Option<Hierarchy>,
     params: IterativeParams,
     direct: Option<DirectSolver>,
+    /// Dominant vector of D⁻¹A of the previous matrix.
+    power: Option<Vec<f64>>,
 }
 
 impl IterativeSolver {
     /// `block`: size of the diagonal blocks of the smoother (the spatial
     /// dimension when the free dofs of a node are consecutive, else 1).
-    /// `coarse`: the prolongation P (rows: the unknowns of `pattern`) and the
-    /// lower-triangle pattern of Pᵀ A P.
+    /// `levels`: per coarse level, finest first, the prolongation P_k to the
+    /// level above (P_1 has a row per unknown of `pattern`) and the
+    /// lower-triangle pattern of P_kᵀ A_{k−1} P_k; empty for Chebyshev–Jacobi alone.
     pub fn try_new(
         pattern: &SymmetricCsc,
         block: usize,
-        coarse: Option<(SparseRows, SymmetricCsc)>,
+        levels: Vec<(SparseRows, SymmetricCsc)>,
         params: IterativeParams,
     ) -> Result<IterativeSolver> {
-        let coarse = match coarse {
-            Some((p, cp)) => {
-                if p.n_rows != pattern.n {
-                    return Err(Error::Solver(format!("P has {} rows for {} unknowns", p.n_rows, pattern.n)));
-                }
-                Some(CoarseLevel::try_new(p, cp)?)
+        if let Some((p, _)) = levels.first() {
+            if p.n_rows != pattern.n {
+                return Err(Error::Solver(format!("P has {} rows for {} unknowns", p.n_rows, pattern.n)));
             }
-            None => None,
-        };
-        Ok(IterativeSolver { op: SymmetricOperator::try_new(pattern)?, block, coarse, params, direct: None })
+        }
+        let coarse = if levels.is_empty() { None } else { Some(Hierarchy::try_new(levels, block, params.smoother)?) };
+        Ok(IterativeSolver {
+            op: SymmetricOperator::try_new(pattern)?,
+            block,
+            coarse,
+            params,
+            direct: None,
+            power: None,
+        })
     }
 
     fn try_pcg_solve(&mut self, pattern: &SymmetricCsc, values: &[f64], rhs: &[f64], x: &mut [f64]) -> Result<usize> {
         self.op.update(values);
-        let smoother = Chebyshev::try_new(&self.op, pattern, values, self.block, self.params.smoother)?;
+        let start = self.power.take();
+        let smoother = Chebyshev::try_new_from(&self.op, pattern, values, self.block, self.params.smoother, start)?;
         if let Some(c) = &mut self.coarse {
-            if !(self.params.reuse_coarse && c.is_factored()) {
-                c.try_factor(&self.op, values)?;
+            if !(self.params.reuse_coarse && c.is_ready()) {
+                c.try_update(&self.op, values)?;
             }
         }
         let op = &self.op;
-        let mut pre = TwoLevel::new(op, values, &smoother, self.coarse.as_ref());
-        try_pcg(&mut |v, y| op.matvec_into(values, v, y), &mut |r, z| pre.apply_into(r, z), rhs, x, self.params.pcg)
+        let mut pre = VCycle::new(op, values, &smoother, self.coarse.as_mut());
+        let it = try_pcg(
+            &mut |v, y| op.matvec_into(values, v, y),
+            &mut |r, z| pre.apply_into(r, z),
+            rhs,
+            x,
+            self.params.pcg,
+        );
+        drop(pre);
+        self.power = Some(smoother.power_vector());
+        it
     }
 }
 
@@ -98,7 +115,7 @@ impl LinearSolver for IterativeSolver {
             Ok(iterations) => Ok(SolveStats { iterations }),
             Err(Error::Solver(_)) if pattern.n <= self.params.fallback_max_dofs => {
                 // The direct solver handles indefinite matrices (LU); a coarse
-                // factor that failed is left unset and rebuilt next time.
+                // hierarchy that failed is left unset and rebuilt next time.
                 x.copy_from_slice(&x0);
                 if self.direct.is_none() {
                     self.direct = Some(DirectSolver::try_new(pattern)?);

@@ -1,15 +1,15 @@
-//! Two-level p-multigrid preconditioner: Chebyshev smoothing on block Jacobi,
-//! and a coarse correction on a Galerkin operator A_c = Pᵀ A P factored by
-//! sparse Cholesky.
+//! p-multigrid preconditioner: a V-cycle over nested levels with Chebyshev
+//! smoothing on block Jacobi, Galerkin coarse operators A_k = P_kᵀ A_{k−1} P_k,
+//! and the coarsest level factored by sparse Cholesky.
 //!
-//! The prolongation P (fine free dofs ← coarse free dofs) and the pattern of
-//! A_c come from outside (the caller knows the mesh: for hocurve, P
-//! interpolates the order-1 field on the linear vertices, see
-//! `assembly::vertex_prolongation`). Symbolic work once (transpose of P,
-//! Cholesky analysis of A_c), numeric work per matrix.
+//! The prolongations P_k and the patterns of the A_k come from outside (the
+//! caller knows the mesh: for hocurve, the orders p → p/2 → … → 1 of nested
+//! Lagrange spaces, see `assembly::multigrid_levels`). Symbolic work once
+//! (transposes, transposed patterns, Cholesky analysis), numeric work per matrix.
 //!
-//! One application of the preconditioner (a symmetric V-cycle, so that PCG
-//! may use it): x = S r; x += P A_c⁻¹ Pᵀ (r − A x); x += S (r − A x), where
+//! One application on a level (a symmetric V-cycle, so that PCG may use it):
+//! x = S r; x += P B_c Pᵀ (r − A x); x += S (r − A x), B_c the cycle on the
+//! next level (A_c⁻¹ on the coarsest), where
 //! S is `degree` steps of Chebyshev iteration on D⁻¹A from zero over
 //! [λ_max/ratio, λ_max] (Adams, Brezina, Hu, Tuminaro 2003), D the nodal
 //! blocks of A; S is a polynomial in D⁻¹A times D⁻¹, hence symmetric, and the
@@ -157,7 +157,7 @@ pub struct ChebyshevParams {
 
 impl Default for ChebyshevParams {
     fn default() -> Self {
-        ChebyshevParams { degree: 3, ratio: 20.0, power_iterations: 12 }
+        ChebyshevParams { degree: 3, ratio: 30.0, power_iterations: 12 }
     }
 }
 
@@ -166,6 +166,7 @@ pub struct Chebyshev {
     jacobi: BlockJacobi,
     lambda_max: f64,
     params: ChebyshevParams,
+    power: Vec<f64>,
 }
 
 impl Chebyshev {
@@ -178,14 +179,31 @@ impl Chebyshev {
         block: usize,
         params: ChebyshevParams,
     ) -> Result<Chebyshev> {
+        Self::try_new_from(op, pattern, values, block, params, None)
+    }
+
+    /// [`Self::try_new`] with the power iteration started from the dominant
+    /// vector of a previous, similar matrix ([`Self::power_vector`]): then
+    /// `power_iterations / 3` steps (at least 2) suffice.
+    pub fn try_new_from(
+        op: &SymmetricOperator,
+        pattern: &SymmetricCsc,
+        values: &[f64],
+        block: usize,
+        params: ChebyshevParams,
+        start: Option<Vec<f64>>,
+    ) -> Result<Chebyshev> {
         let jacobi = BlockJacobi::try_new(pattern, values, block)?;
         let n = pattern.n;
-        let mut v: Vec<f64> = (0..n).map(|i| 1.0 + 0.5 * ((i as f64) * 1.618).sin()).collect();
+        let steps = if start.is_some() { (params.power_iterations / 3).max(2) } else { params.power_iterations.max(1) };
+        let mut v = start
+            .filter(|v| v.len() == n)
+            .unwrap_or_else(|| (0..n).map(|i| 1.0 + 0.5 * ((i as f64) * 1.618).sin()).collect());
         let norm = dot(&v, &v).sqrt();
         v.iter_mut().for_each(|x| *x /= norm);
         let (mut av, mut u) = (vec![0.0; n], vec![0.0; n]);
         let mut lambda = 0.0;
-        for _ in 0..params.power_iterations.max(1) {
+        for _ in 0..steps {
             op.matvec_into(values, &v, &mut av);
             jacobi.apply_into(&av, &mut u);
             lambda = dot(&u, &u).sqrt();
@@ -195,11 +213,16 @@ impl Chebyshev {
             std::mem::swap(&mut u, &mut v);
             v.iter_mut().for_each(|x| *x /= lambda);
         }
-        Ok(Chebyshev { jacobi, lambda_max: 1.1 * lambda, params })
+        Ok(Chebyshev { jacobi, lambda_max: 1.1 * lambda, params, power: v })
     }
 
     pub fn lambda_max(&self) -> f64 {
         self.lambda_max
+    }
+
+    /// The last power-iteration vector (a start for the next, similar matrix).
+    pub fn power_vector(self) -> Vec<f64> {
+        self.power
     }
 
     /// x = S r (Chebyshev from zero).
@@ -233,83 +256,178 @@ struct SmootherWork {
     z: Vec<f64>,
 }
 
-/// The coarse level: prolongation, its transpose, and the factored A_c.
-pub struct CoarseLevel {
+/// One coarse level: the prolongation to the level above, its transpose, the
+/// Galerkin operator on its pattern and either a smoother (intermediate
+/// levels) or a Cholesky factor (the coarsest).
+struct Level {
     p: SparseRows,
     pt: SparseRows,
     pattern: SymmetricCsc,
-    chol: SparseCholesky,
-    factor: Option<Vec<f64>>,
-}
-
-impl CoarseLevel {
-    /// Symbolic set-up: Pᵀ and the Cholesky analysis of the coarse pattern.
-    pub fn try_new(p: SparseRows, pattern: SymmetricCsc) -> Result<CoarseLevel> {
-        if pattern.n != p.n_cols {
-            return Err(Error::Solver(format!("coarse pattern has {} rows, P has {} columns", pattern.n, p.n_cols)));
-        }
-        let chol = SparseCholesky::try_analyse(&pattern)?;
-        Ok(CoarseLevel { pt: p.transpose(), p, pattern, chol, factor: None })
-    }
-
-    pub fn n(&self) -> usize {
-        self.p.n_cols
-    }
-
-    /// Galerkin product and Cholesky factorisation for the fine matrix held by `op`.
-    pub fn try_factor(&mut self, op: &SymmetricOperator, values: &[f64]) -> Result<()> {
-        let ac = galerkin_product(op, values, &self.p, &self.pt, &self.pattern);
-        self.factor = None;
-        self.factor = Some(self.chol.try_factor(&self.pattern, &ac)?);
-        Ok(())
-    }
-
-    pub fn is_factored(&self) -> bool {
-        self.factor.is_some()
-    }
-}
-
-/// One V-cycle application z = B r for the matrix (`op`, `values`).
-pub struct TwoLevel<'a> {
-    op: &'a SymmetricOperator,
-    values: &'a [f64],
-    smoother: &'a Chebyshev,
-    coarse: Option<&'a CoarseLevel>,
+    op: SymmetricOperator,
+    values: Vec<f64>,
+    smoother: Option<Chebyshev>,
+    chol: Option<(SparseCholesky, Vec<f64>)>,
     work: SmootherWork,
     s: Vec<f64>,
     e: Vec<f64>,
-    coarse_rhs: Vec<f64>,
+    rhs: Vec<f64>,
+    x: Vec<f64>,
 }
 
-impl<'a> TwoLevel<'a> {
+/// The coarse levels of the p-multigrid V-cycle, finest first; the last one is
+/// solved by sparse Cholesky.
+pub struct Hierarchy {
+    levels: Vec<Level>,
+    block: usize,
+    params: ChebyshevParams,
+    ready: bool,
+}
+
+impl Hierarchy {
+    /// Symbolic set-up from (P_k, pattern_k) per coarse level, finest first:
+    /// P_k maps level k to level k − 1 (level 0 is the fine matrix).
+    pub fn try_new(
+        levels: Vec<(SparseRows, SymmetricCsc)>,
+        block: usize,
+        params: ChebyshevParams,
+    ) -> Result<Hierarchy> {
+        let n_levels = levels.len();
+        let mut out = Vec::with_capacity(n_levels);
+        for (k, (p, pattern)) in levels.into_iter().enumerate() {
+            if pattern.n != p.n_cols {
+                return Err(Error::Solver(format!(
+                    "coarse pattern has {} rows, P has {} columns",
+                    pattern.n, p.n_cols
+                )));
+            }
+            let chol =
+                if k + 1 == n_levels { Some((SparseCholesky::try_analyse(&pattern)?, Vec::new())) } else { None };
+            let n = pattern.n;
+            let v = || vec![0.0; n];
+            out.push(Level {
+                pt: p.transpose(),
+                p,
+                op: SymmetricOperator::try_new(&pattern)?,
+                values: vec![0.0; pattern.nnz()],
+                pattern,
+                smoother: None,
+                chol,
+                work: SmootherWork { res: v(), d: v(), t: v(), z: v() },
+                s: v(),
+                e: v(),
+                rhs: v(),
+                x: v(),
+            });
+        }
+        Ok(Hierarchy { levels: out, block, params, ready: false })
+    }
+
+    /// Unknowns per coarse level.
+    pub fn sizes(&self) -> Vec<usize> {
+        self.levels.iter().map(|l| l.pattern.n).collect()
+    }
+
+    /// True once [`Self::try_update`] has succeeded.
+    pub fn is_ready(&self) -> bool {
+        self.ready
+    }
+
+    /// Numeric set-up for the fine matrix held by `op`: Galerkin operators
+    /// level by level, smoothers, and the factor of the coarsest.
+    pub fn try_update(&mut self, op: &SymmetricOperator, values: &[f64]) -> Result<()> {
+        self.ready = false;
+        for k in 0..self.levels.len() {
+            let (above, rest) = self.levels.split_at_mut(k);
+            let l = &mut rest[0];
+            l.values = match above.last() {
+                None => galerkin_product(op, values, &l.p, &l.pt, &l.pattern),
+                Some(a) => galerkin_product(&a.op, &a.values, &l.p, &l.pt, &l.pattern),
+            };
+            l.op.update(&l.values);
+            if let Some((chol, factor)) = &mut l.chol {
+                *factor = chol.try_factor(&l.pattern, &l.values)?;
+            } else {
+                l.smoother = Some(Chebyshev::try_new(&l.op, &l.pattern, &l.values, self.block, self.params)?);
+            }
+        }
+        self.ready = true;
+        Ok(())
+    }
+
+    /// x = B_k r on coarse level k (V-cycle from there down).
+    fn cycle_on(&mut self, k: usize) -> Result<()> {
+        let (now, below) = self.levels.split_at_mut(k + 1);
+        let l = &mut now[k];
+        if let Some((chol, factor)) = &l.chol {
+            l.x.copy_from_slice(&l.rhs);
+            return chol.try_solve_in_place(factor, &mut l.x);
+        }
+        let smoother = l.smoother.as_ref().ok_or_else(|| Error::Solver("p-multigrid level not set up".into()))?;
+        smoother.smooth_into(&l.op, &l.values, &l.rhs, &mut l.x, &mut l.work);
+        l.op.matvec_into(&l.values, &l.x, &mut l.s);
+        axpby_in_place(1.0, &l.rhs, -1.0, &mut l.s);
+        let next = &mut below[0];
+        next.pt.matvec_into(&l.s, &mut next.rhs);
+        self.cycle_on(k + 1)?;
+        let (now, below) = self.levels.split_at_mut(k + 1);
+        let (l, next) = (&mut now[k], &below[0]);
+        next.p.matvec_into(&next.x, &mut l.e);
+        axpby_in_place(1.0, &l.e, 1.0, &mut l.x);
+        l.op.matvec_into(&l.values, &l.x, &mut l.s);
+        axpby_in_place(1.0, &l.rhs, -1.0, &mut l.s);
+        let smoother = l.smoother.as_ref().expect("checked above");
+        smoother.smooth_into(&l.op, &l.values, &l.s, &mut l.e, &mut l.work);
+        axpby_in_place(1.0, &l.e, 1.0, &mut l.x);
+        Ok(())
+    }
+}
+
+/// The p-multigrid V-cycle z = B r for the fine matrix (`op`, `values`):
+/// smoothing with `smoother` on the fine level, the coarse levels of `coarse`.
+pub struct VCycle<'a> {
+    op: &'a SymmetricOperator,
+    values: &'a [f64],
+    smoother: &'a Chebyshev,
+    coarse: Option<&'a mut Hierarchy>,
+    work: SmootherWork,
+    s: Vec<f64>,
+    e: Vec<f64>,
+}
+
+impl<'a> VCycle<'a> {
     pub fn new(
         op: &'a SymmetricOperator,
         values: &'a [f64],
         smoother: &'a Chebyshev,
-        coarse: Option<&'a CoarseLevel>,
-    ) -> TwoLevel<'a> {
+        coarse: Option<&'a mut Hierarchy>,
+    ) -> VCycle<'a> {
         let n = op.n();
-        let coarse = coarse.filter(|c| c.n() > 0);
-        let nc = coarse.map_or(0, |c| c.n());
+        let coarse = coarse.filter(|c| !c.levels.is_empty() && c.levels.iter().all(|l| l.pattern.n > 0));
         let v = || vec![0.0; n];
         let work = SmootherWork { res: v(), d: v(), t: v(), z: v() };
-        TwoLevel { op, values, smoother, coarse, work, s: v(), e: v(), coarse_rhs: vec![0.0; nc] }
+        VCycle { op, values, smoother, coarse, work, s: v(), e: v() }
     }
 
     /// z = B r.
     pub fn apply_into(&mut self, r: &[f64], z: &mut [f64]) -> Result<()> {
         let (op, values) = (self.op, self.values);
         self.smoother.smooth_into(op, values, r, z, &mut self.work);
-        let Some(coarse) = self.coarse else {
+        let Some(coarse) = self.coarse.as_deref_mut() else {
             return Ok(());
         };
-        let factor = coarse.factor.as_ref().ok_or_else(|| Error::Solver("coarse level not factored".into()))?;
-        // s = r − A z; z += P A_c⁻¹ Pᵀ s
+        if !coarse.ready {
+            return Err(Error::Solver("p-multigrid hierarchy not set up".into()));
+        }
+        // s = r − A z; z += P B_1 Pᵀ s
         op.matvec_into(values, z, &mut self.s);
         axpby_in_place(1.0, r, -1.0, &mut self.s);
-        coarse.pt.matvec_into(&self.s, &mut self.coarse_rhs);
-        coarse.chol.try_solve_in_place(factor, &mut self.coarse_rhs)?;
-        coarse.p.matvec_into(&self.coarse_rhs, &mut self.e);
+        {
+            let l = &mut coarse.levels[0];
+            l.pt.matvec_into(&self.s, &mut l.rhs);
+        }
+        coarse.cycle_on(0)?;
+        let l = &coarse.levels[0];
+        l.p.matvec_into(&l.x, &mut self.e);
         axpby_in_place(1.0, &self.e, 1.0, z);
         // z += S (r − A z)
         op.matvec_into(values, z, &mut self.s);
