@@ -7,9 +7,9 @@
 //! caller's values) plus the strictly lower part of row r, which is the
 //! transpose of the stored triangle and is copied, per matrix, into a
 //! compressed-row array through a position map computed once. Indices are
-//! `u32`. Memory per stored entry: 4 (column index) + 8 (copied lower value)
-//! + 4 (map) bytes on top of the caller's pattern and values, against 24 for
-//! an explicit full CSR with a map.
+//! `u32`. Memory per stored entry: 4 (column index), 8 (copied lower value)
+//! and 4 (map) bytes on top of the caller's pattern and values, against 24
+//! for an explicit full CSR with a map.
 //!
 //! Vector reductions run over fixed chunks and are summed in chunk order, so
 //! results do not depend on the number of threads.
@@ -167,6 +167,9 @@ impl Default for PcgParams {
     }
 }
 
+/// z = M⁻¹ r, for [`try_pcg`].
+pub type Preconditioner<'a> = dyn FnMut(&[f64], &mut [f64]) -> Result<()> + 'a;
+
 /// Solve A x = b by preconditioned conjugate gradients from the initial guess
 /// in `x` (Saad, Iterative Methods, Alg. 9.1); returns the iterations.
 ///
@@ -177,7 +180,7 @@ impl Default for PcgParams {
 /// without convergence in `max_iterations`.
 pub fn try_pcg(
     apply_a: &mut dyn FnMut(&[f64], &mut [f64]),
-    apply_m: &mut dyn FnMut(&[f64], &mut [f64]) -> Result<()>,
+    apply_m: &mut Preconditioner<'_>,
     b: &[f64],
     x: &mut [f64],
     params: PcgParams,
@@ -202,12 +205,12 @@ pub fn try_pcg(
     let mut rz = dot(&r, &z);
     let mut q = vec![0.0; n];
     for it in 1..=params.max_iterations {
-        if !(rz > 0.0) {
+        if rz.is_nan() || rz <= 0.0 {
             return Err(Error::Solver(format!("PCG: the preconditioner is not positive definite (rᵀz = {rz:.3e})")));
         }
         apply_a(&p, &mut q);
         let pq = dot(&p, &q);
-        if !(pq > 0.0) {
+        if pq.is_nan() || pq <= 0.0 {
             return Err(Error::Solver(format!(
                 "PCG breakdown in iteration {it}: pᵀAp = {pq:.3e}, the matrix is not positive definite"
             )));
@@ -249,7 +252,7 @@ impl BlockJacobi {
     /// one is not positive definite.
     pub fn try_new(pattern: &SymmetricCsc, values: &[f64], block: usize) -> Result<BlockJacobi> {
         let n = pattern.n;
-        if !(1..=3).contains(&block) || n % block != 0 {
+        if !(1..=3).contains(&block) || !n.is_multiple_of(block) {
             return Err(Error::Solver(format!("block Jacobi: block size {block} does not divide {n}")));
         }
         let bb = block * block;
@@ -300,7 +303,7 @@ fn invert_spd_block(a: &[f64], b: usize, out: &mut [f64]) -> Option<()> {
         for k in 0..j {
             d -= l[j * b + k] * l[j * b + k];
         }
-        if !(d > 0.0) {
+        if d.is_nan() || d <= 0.0 {
             return None;
         }
         let d = d.sqrt();
@@ -403,17 +406,33 @@ pub(crate) mod tests {
         let jac = BlockJacobi::try_new(&a, &v, 2).unwrap();
         let mut x = vec![0.0; a.n];
         let params = PcgParams { rtol: 1e-12, max_iterations: 500 };
-        let it =
-            try_pcg(&mut |x, y| op.matvec_into(&v, x, y), &mut |r, z| Ok(jac.apply_into(r, z)), &b, &mut x, params)
-                .unwrap();
+        let it = try_pcg(
+            &mut |x, y| op.matvec_into(&v, x, y),
+            &mut |r, z| {
+                jac.apply_into(r, z);
+                Ok(())
+            },
+            &b,
+            &mut x,
+            params,
+        )
+        .unwrap();
         assert!(it > 5 && it < 500, "{it} iterations");
         for (p, q) in x.iter().zip(&x_direct) {
             assert!((p - q).abs() < 1e-9, "{p} vs {q}");
         }
         // Warm start from the solution: no iteration.
-        let it =
-            try_pcg(&mut |x, y| op.matvec_into(&v, x, y), &mut |r, z| Ok(jac.apply_into(r, z)), &b, &mut x, params)
-                .unwrap();
+        let it = try_pcg(
+            &mut |x, y| op.matvec_into(&v, x, y),
+            &mut |r, z| {
+                jac.apply_into(r, z);
+                Ok(())
+            },
+            &b,
+            &mut x,
+            params,
+        )
+        .unwrap();
         assert_eq!(it, 0);
     }
 
