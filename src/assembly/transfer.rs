@@ -20,12 +20,24 @@ use crate::mesh::{HighOrderMesh, NodeConstraint};
 use crate::reference::{LagrangeBasis, NodeSet};
 use crate::solver::{SparseRows, SymmetricCsc};
 
-/// The orders of the p-multigrid hierarchy below `p`: p/2, p/4, ..., 1.
+/// The orders of the p-multigrid hierarchy below `p`: the even orders below
+/// p, every other one, then 1 (6 → 4 → 2 → 1, 5 → 4 → 2 → 1, 3 → 2 → 1).
+///
+/// Measured on the sphere cavity (PCG iterations, one increment): p = 3:
+/// 25 with [1], 15 with [2, 1]; p = 5: 41 with [2, 1], 33 with [3, 1], 25 with
+/// [4, 2, 1] (also the fastest); p = 6: 50 with [3, 1], 39 with [4, 2, 1],
+/// 31 with [5, 3, 1] but 17% slower (the order-5 level is expensive).
 pub fn coarse_orders(p: usize) -> Vec<usize> {
     let mut out = Vec::new();
     let mut q = p;
     while q > 1 {
-        q /= 2;
+        q = if q <= 2 {
+            1
+        } else if q % 2 == 1 {
+            q - 1
+        } else {
+            q - 2
+        };
         out.push(q);
     }
     out
@@ -223,6 +235,10 @@ mod tests {
         let dofs = DofMap::new(&mesh);
         let levels = multigrid_levels(&mesh, &dofs);
         assert_eq!(levels.len(), 2);
+        assert_eq!(coarse_orders(6), [4, 2, 1]);
+        assert_eq!(coarse_orders(5), [4, 2, 1]);
+        assert_eq!(coarse_orders(3), [2, 1]);
+        assert_eq!(coarse_orders(2), [1]);
         let c2 = coarse_mesh(&mesh, 2);
         let d2 = DofMap::new(&c2);
         assert_eq!(levels[0].0.n_cols, d2.n_free);
