@@ -16,17 +16,20 @@
 //!   [`FALLBACK_DIRECT_MAX_DOFS`] unknowns are then solved directly (reported
 //!   as 0 iterations), larger ones return [`Error::Solver`].
 //!
-//! Measured, one increment from a zero start (times under a load average of
-//! ~6 on 2 cores, so ×2-3 of an idle machine; the p = 4 row is the median of
-//! 3 runs: 14.5, 16.2, 29.0 s):
+//! Measured, one increment from a zero start, hierarchy of
+//! `assembly::transfer::coarse_orders` (times on 2 cores shared with other
+//! jobs, load average 3-6, so ×1.5-3 of an idle machine; p = 2 and the direct
+//! column at load ~6, p = 3, 5, 6 at load ~3.4, p = 4 median of 9.3, 9.6, 14.5 s):
 //!
 //! | p | n, n_radial | unknowns | symbolic set-up s | iterations | solve s | direct solve s | peak RSS MB |
 //! |---|-------------|----------|-------------------|------------|---------|----------------|-------------|
 //! | 2 | 8, 6        | 106 050  | 0.46              | 18         | 3.0     | 17.8 (874 MB)  | 259         |
-//! | 3 | 5, 5        | 117 534  | 0.53              | 27         | 12.6    |                | 355         |
-//! | 4 | 4, 3        | 106 050  | 0.83              | 26         | 16.2    | 14.7 (988 MB)  | 510         |
-//! | 5 | 3, 3        | 117 534  | 3.33              | 36         | 65.7    |                | 747         |
-//! | 6 | 2, 4        | 121 962  | 4.01              | 65         | 123     |                | 1193        |
+//! | 3 | 5, 5        | 117 534  | 0.46              | 16         | 5.6     |                | 494         |
+//! | 4 | 4, 3        | 106 050  | 0.57              | 26         | 9.6     | 14.7 (988 MB)  | 510         |
+//! | 5 | 3, 3        | 117 534  | 0.93              | 22         | 19.3    |                | 1241        |
+//! | 6 | 2, 4        | 121 962  | 0.99              | 50         | 32.0    |                | 1492        |
+//!
+//! On one mesh (n = 2, n_radial = 3) for p = 2..6: 14, 16, 26, 25, 39 iterations.
 //!
 //! At a lighter load (average ~3): p = 4, 106 050 unknowns, solve 9.3 / 9.6 s;
 //! 404 466 unknowns (n = 6, n_radial = 5), 26 iterations, solve 37.1 s, peak
