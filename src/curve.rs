@@ -7,7 +7,9 @@
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-use crate::assembly::{assemble, color_cells, DofMap, ElementKernel, LinearElasticKernel, MaterialKernel, TangentMode};
+use crate::assembly::{
+    assemble, color_cells, multigrid_levels, DofMap, ElementKernel, LinearElasticKernel, MaterialKernel, TangentMode,
+};
 use crate::geometry::Projector;
 use crate::mapping::ElementCache;
 use crate::material::{make_material, LinearElastic, MaterialModel};
@@ -15,7 +17,10 @@ use crate::mesh::{remove_boundary_caps, validate_and_orient, HighOrderMesh, Line
 use crate::quadrature::simplex_rule;
 use crate::quality::{self, ElementQuality, MeshQuality};
 use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
-use crate::solver::{DirectSolver, ExternalAdapter, LinearSolver, SolverChoice, SymmetricCsc};
+use crate::solver::{
+    DirectSolver, ExternalAdapter, IterativeParams, IterativeSolver, LinearSolver, SolverChoice, SymmetricCsc,
+    AUTO_DIRECT_MAX_DOFS,
+};
 use crate::{Error, Result};
 
 /// The solid-mechanics formulation (paper Table 1).
@@ -355,12 +360,26 @@ pub struct IncrementsReport {
     pub solver_iterations: Vec<usize>,
 }
 
-/// The solver `choice` asks for, set up for this mesh and pattern.
-fn make_solver(choice: SolverChoice, _mesh: &HighOrderMesh, pattern: &SymmetricCsc) -> Result<Box<dyn LinearSolver>> {
-    match choice {
-        SolverChoice::Auto | SolverChoice::Direct => Ok(Box::new(DirectSolver::try_new(pattern)?)),
-        SolverChoice::External(host) => Ok(Box::new(ExternalAdapter::new(host, pattern))),
+/// The solver `choice` asks for, set up for this mesh and pattern. `Auto`:
+/// direct in 2D and up to [`AUTO_DIRECT_MAX_DOFS`] unknowns in 3D, iterative above.
+fn make_solver(
+    choice: SolverChoice,
+    mesh: &HighOrderMesh,
+    dofs: &DofMap,
+    pattern: &SymmetricCsc,
+) -> Result<Box<dyn LinearSolver>> {
+    let iterative = match choice {
+        SolverChoice::External(host) => return Ok(Box::new(ExternalAdapter::new(host, pattern))),
+        SolverChoice::Direct => false,
+        SolverChoice::Iterative => true,
+        SolverChoice::Auto => mesh.dim() == 3 && pattern.n > AUTO_DIRECT_MAX_DOFS,
+    };
+    if !iterative {
+        return Ok(Box::new(DirectSolver::try_new(pattern)?));
     }
+    // The free dofs of a node are consecutive: nodal blocks for the smoother.
+    let levels = multigrid_levels(mesh, dofs);
+    Ok(Box::new(IterativeSolver::try_new(pattern, mesh.dim(), levels, IterativeParams::default())?))
 }
 
 fn euclid(v: &[f64]) -> f64 {
@@ -395,7 +414,7 @@ pub fn solve_increments<K: ElementKernel>(
     let t = Instant::now();
     let pattern = dofs.pattern(mesh);
     let colors = color_cells(mesh);
-    let mut solver = make_solver(stepping.solver.clone(), mesh, &pattern)?;
+    let mut solver = make_solver(stepping.solver.clone(), mesh, &dofs, &pattern)?;
     out.linear_solver = solver.name();
     timings.setup += t.elapsed().as_secs_f64();
     let residual = stepping.residual || stepping.newton.is_some();

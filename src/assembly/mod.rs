@@ -14,6 +14,7 @@
 
 mod hyperelastic;
 mod kernel;
+pub mod transfer;
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -21,6 +22,7 @@ use rayon::prelude::*;
 
 pub use hyperelastic::{MaterialKernel, MaterialWorkspace, TangentMode};
 pub use kernel::{KernelWorkspace, LinearElasticKernel};
+pub use transfer::multigrid_levels;
 
 use crate::mesh::{HighOrderMesh, NodeConstraint};
 use crate::solver::SymmetricCsc;

@@ -3,7 +3,7 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{LltParams, LltRegularization};
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, SymbolicCholesky};
+use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side, Spec};
 
@@ -35,6 +35,14 @@ impl SparseCholesky {
     /// Factor the matrix with these `values` on the analysed pattern and solve
     /// A x = b in place (`rhs` becomes x). Fails if A is not positive definite.
     pub fn try_factor_solve_in_place(&self, pattern: &SymmetricCsc, values: &[f64], rhs: &mut [f64]) -> Result<()> {
+        let l_values = self.try_factor(pattern, values)?;
+        self.try_solve_in_place(&l_values, rhs)
+    }
+
+    /// The numeric factor L (values on the analysed pattern of L) of the matrix
+    /// with these `values`, for repeated solves with [`Self::try_solve_in_place`].
+    /// Fails if A is not positive definite.
+    pub fn try_factor(&self, pattern: &SymmetricCsc, values: &[f64]) -> Result<Vec<f64>> {
         let sym = SymbolicSparseColMatRef::new_checked(pattern.n, pattern.n, &pattern.col_ptr, None, &pattern.row_idx);
         let a = SparseColMatRef::new(sym, values);
         let mut l_values = Vec::new();
@@ -45,8 +53,7 @@ impl SparseCholesky {
         let params: Spec<LltParams, f64> = Default::default();
         let mut mem = MemBuffer::try_new(self.symbolic.factorize_numeric_llt_scratch::<f64>(self.par, params))
             .map_err(|_| Error::Solver("out of memory for the Cholesky workspace".into()))?;
-        let llt = self
-            .symbolic
+        self.symbolic
             .factorize_numeric_llt(
                 &mut l_values,
                 a,
@@ -57,6 +64,12 @@ impl SparseCholesky {
                 params,
             )
             .map_err(|e| Error::Solver(format!("the stiffness matrix is not positive definite ({e:?})")))?;
+        Ok(l_values)
+    }
+
+    /// Solve L Lᵀ x = b in place with a factor from [`Self::try_factor`].
+    pub fn try_solve_in_place(&self, l_values: &[f64], rhs: &mut [f64]) -> Result<()> {
+        let llt = LltRef::new(&self.symbolic, l_values);
         let mut solve_mem = MemBuffer::try_new(self.symbolic.solve_in_place_scratch::<f64>(1, self.par))
             .map_err(|_| Error::Solver("out of memory for the solve workspace".into()))?;
         let n = rhs.len();

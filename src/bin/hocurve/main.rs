@@ -45,7 +45,7 @@ USAGE:
                 --output OUT.msh|OUT.vtu [--report R.json]
                 [--formulation linear|ile] [--material linear]
                 [--young E] [--poisson NU] [--increments N]
-                [--spacing optimal|equispaced] [--solver auto|direct]
+                [--spacing optimal|equispaced] [--solver auto|direct|iterative]
       Curve a linear gmsh (.msh 4.1) mesh. TAG is the elementary entity tag of
       the boundary facets (or 3D feature curves) that lie on SHAPE:
         sphere:cx,cy,cz,r        circle:cx,cy,r (2D)     circle3:cx,cy,cz,nx,ny,nz,r

@@ -1,0 +1,203 @@
+//! The iterative solver: PCG preconditioned by the p-multigrid V-cycle of
+//! [`super::pmg`], with a direct fallback for indefinite systems.
+//!
+//! Decisions (issue 5, sphere_in_box_3d, ILE, ν = 0.45, 2 shared cores):
+//! - Tolerance ‖r‖ ≤ 1e-8 ‖b‖ ([`PcgParams`]): the nodes then agree with the
+//!   direct solver's to ~1e-9 of the mesh size (tests/solvers.rs).
+//! - The coarse levels (Galerkin products, coarsest factor) are built on the
+//!   first matrix and reused: rebuilding them gave the same iteration counts
+//!   (26, 19, 18 over 3 increments at p = 4, 106k unknowns) for ~1 s more per
+//!   increment. The fine smoother follows every matrix (its λ_max power
+//!   iteration restarts from the previous dominant vector: 4 steps, not 12).
+//! - Chebyshev degree 3 on [λ_max/30, λ_max]: at p = 4 degrees 2/3/4 took
+//!   34/26/21 iterations, i.e. 170/182/189 products with A: flat, so 3.
+//! - Indefinite tangents (CIL, NONLINEAR): PCG reports pᵀAp ≤ 0 (or the
+//!   smoother's blocks or the coarse factor fail); systems of at most
+//!   [`FALLBACK_DIRECT_MAX_DOFS`] unknowns are then solved directly (reported
+//!   as 0 iterations), larger ones return [`Error::Solver`].
+//!
+//! Measured, one increment from a zero start, hierarchy of
+//! `assembly::transfer::coarse_orders` (times on 2 cores shared with other
+//! jobs, load average 3-6, so ×1.5-3 of an idle machine; p = 2 and the direct
+//! column at load ~6, p = 3, 5, 6 at load ~3.4, p = 4 median of 9.3, 9.6, 14.5 s):
+//!
+//! | p | n, n_radial | unknowns | symbolic set-up s | iterations | solve s | direct solve s | peak RSS MB |
+//! |---|-------------|----------|-------------------|------------|---------|----------------|-------------|
+//! | 2 | 8, 6        | 106 050  | 0.46              | 18         | 3.0     | 17.8 (874 MB)  | 259         |
+//! | 3 | 5, 5        | 117 534  | 0.46              | 16         | 5.6     |                | 494         |
+//! | 4 | 4, 3        | 106 050  | 0.57              | 26         | 9.6     | 14.7 (988 MB)  | 510         |
+//! | 5 | 3, 3        | 117 534  | 0.93              | 22         | 19.3    |                | 1241        |
+//! | 6 | 2, 4        | 121 962  | 0.99              | 50         | 32.0    |                | 1492        |
+//!
+//! On one mesh (n = 2, n_radial = 3) for p = 2..6: 14, 16, 26, 25, 39 iterations.
+//!
+//! At a lighter load (average ~3): p = 4, 106 050 unknowns, solve 9.3 / 9.6 s;
+//! 404 466 unknowns (n = 6, n_radial = 5), 26 iterations, solve 37.1 s, peak
+//! RSS 2.0 GB: time ∝ N^1.0 and iterations independent of N. Ten increments
+//! (p = 4, 106k): iterations 26, 17, 17, 16 × 7 (warm start), solve time 4.1x
+//! one increment.
+//!
+//! 1 161 402 unknowns (n = 8, n_radial = 8, p = 4), one increment: 26
+//! iterations, solve 151 s, whole run 186 s (the process got 78% of one core
+//! on average: contended), peak RSS 6.0 GB (/usr/bin/time -v). Solve time
+//! from 106k to 1.16M: ×16 for ×11 unknowns (N^1.16, load-confounded).
+//!
+//! The solve time includes the numeric set-up of the first increment (Galerkin
+//! products, coarsest factorisation, λ_max). The cost is dominated by products
+//! with the fine matrix (2·3 + 1 per iteration; ~26 ms for the 21.8M entries
+//! at p = 4 on an idle machine, memory-bound).
+
+use super::pcg::{try_pcg, PcgParams, SymmetricOperator};
+use super::pmg::{Chebyshev, ChebyshevParams, Hierarchy, SparseRows, VCycle};
+use super::{DirectSolver, LinearSolver, SolveStats, SymmetricCsc};
+use crate::{Error, Result};
+
+/// Largest system the iterative solver hands to the direct one when PCG breaks
+/// down (an indefinite CIL or Newton tangent); above it the error is returned.
+/// About 10 s and 2 GB for a 3D p = 4 factorisation (issue 5 measurements).
+pub const FALLBACK_DIRECT_MAX_DOFS: usize = 150_000;
+
+/// Settings of [`IterativeSolver`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IterativeParams {
+    pub pcg: PcgParams,
+    pub smoother: ChebyshevParams,
+    /// Keep the coarse operator and its factor from the first matrix for all
+    /// later ones (the smoother always follows the current matrix).
+    pub reuse_coarse: bool,
+    pub fallback_max_dofs: usize,
+}
+
+impl Default for IterativeParams {
+    fn default() -> Self {
+        IterativeParams {
+            pcg: PcgParams::default(),
+            smoother: ChebyshevParams::default(),
+            reuse_coarse: true,
+            fallback_max_dofs: FALLBACK_DIRECT_MAX_DOFS,
+        }
+    }
+}
+
+/// PCG with a p-multigrid preconditioner (or Chebyshev–Jacobi alone without a
+/// coarse level). Symbolic set-up in [`IterativeSolver::try_new`]; per matrix,
+/// the smoother (diagonal blocks, λ_max) and, unless reused, the coarse
+/// operator. If PCG fails (indefinite matrix, no convergence) on a system of
+/// at most `fallback_max_dofs` unknowns, that system is solved directly.
+pub struct IterativeSolver {
+    op: SymmetricOperator,
+    block: usize,
+    coarse: Option<Hierarchy>,
+    params: IterativeParams,
+    direct: Option<DirectSolver>,
+    /// Dominant vector of D⁻¹A of the previous matrix.
+    power: Option<Vec<f64>>,
+}
+
+impl IterativeSolver {
+    /// `block`: size of the diagonal blocks of the smoother (the spatial
+    /// dimension when the free dofs of a node are consecutive, else 1).
+    /// `levels`: per coarse level, finest first, the prolongation P_k to the
+    /// level above (P_1 has a row per unknown of `pattern`) and the
+    /// lower-triangle pattern of P_kᵀ A_{k−1} P_k; empty for Chebyshev–Jacobi alone.
+    pub fn try_new(
+        pattern: &SymmetricCsc,
+        block: usize,
+        levels: Vec<(SparseRows, SymmetricCsc)>,
+        params: IterativeParams,
+    ) -> Result<IterativeSolver> {
+        if let Some((p, _)) = levels.first() {
+            if p.n_rows != pattern.n {
+                return Err(Error::Solver(format!("P has {} rows for {} unknowns", p.n_rows, pattern.n)));
+            }
+        }
+        let coarse = if levels.is_empty() { None } else { Some(Hierarchy::try_new(levels, block, params.smoother)?) };
+        Ok(IterativeSolver {
+            op: SymmetricOperator::try_new(pattern)?,
+            block,
+            coarse,
+            params,
+            direct: None,
+            power: None,
+        })
+    }
+
+    fn try_pcg_solve(&mut self, pattern: &SymmetricCsc, values: &[f64], rhs: &[f64], x: &mut [f64]) -> Result<usize> {
+        self.op.update(values);
+        let start = self.power.take();
+        let smoother = Chebyshev::try_new_from(&self.op, pattern, values, self.block, self.params.smoother, start)?;
+        if let Some(c) = &mut self.coarse {
+            if !(self.params.reuse_coarse && c.is_ready()) {
+                c.try_update(&self.op, values)?;
+            }
+        }
+        let op = &self.op;
+        let mut pre = VCycle::new(op, values, &smoother, self.coarse.as_mut());
+        let it = try_pcg(
+            &mut |v, y| op.matvec_into(values, v, y),
+            &mut |r, z| pre.apply_into(r, z),
+            rhs,
+            x,
+            self.params.pcg,
+        );
+        drop(pre);
+        self.power = Some(smoother.power_vector());
+        it
+    }
+}
+
+impl LinearSolver for IterativeSolver {
+    fn name(&self) -> &'static str {
+        if self.coarse.is_some() {
+            "pcg-pmg"
+        } else {
+            "pcg-chebyshev"
+        }
+    }
+
+    fn solve(&mut self, pattern: &SymmetricCsc, values: &[f64], rhs: &[f64], x: &mut [f64]) -> Result<SolveStats> {
+        let x0 = x.to_vec();
+        match self.try_pcg_solve(pattern, values, rhs, x) {
+            Ok(iterations) => Ok(SolveStats { iterations }),
+            Err(Error::Solver(_)) if pattern.n <= self.params.fallback_max_dofs => {
+                // The direct solver handles indefinite matrices (LU); a coarse
+                // hierarchy that failed is left unset and rebuilt next time.
+                x.copy_from_slice(&x0);
+                if self.direct.is_none() {
+                    self.direct = Some(DirectSolver::try_new(pattern)?);
+                }
+                self.direct.as_mut().expect("just set").solve(pattern, values, rhs, x)
+            }
+            Err(Error::Solver(m)) => Err(Error::Solver(format!(
+                "{m}; {} unknowns is too many for the direct fallback (at most {}): try the ILE formulation",
+                pattern.n, self.params.fallback_max_dofs
+            ))),
+            Err(e) => Err(e),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::solver::pcg::tests::grid_laplacian;
+
+    #[test]
+    fn indefinite_systems_fall_back_to_the_direct_solver_or_report_the_breakdown() {
+        let (a, mut v) = grid_laplacian(12, 1);
+        for c in 0..a.n {
+            v[a.col_ptr[c]] -= if c % 7 == 0 { 9.0 } else { 0.0 }; // a few negative diagonal entries
+        }
+        let x_true: Vec<f64> = (0..a.n).map(|i| (i as f64 * 0.3).cos()).collect();
+        let b = a.sym_matvec(&v, &x_true);
+        let mut solver = IterativeSolver::try_new(&a, 1, Vec::new(), IterativeParams::default()).unwrap();
+        let mut x = vec![0.0; a.n];
+        let stats = solver.solve(&a, &v, &b, &mut x).unwrap();
+        assert_eq!(stats.iterations, 0, "solved by the direct fallback");
+        assert!(x.iter().zip(&x_true).all(|(p, q)| (p - q).abs() < 1e-9));
+        let params = IterativeParams { fallback_max_dofs: 10, ..Default::default() };
+        let mut solver = IterativeSolver::try_new(&a, 1, Vec::new(), params).unwrap();
+        let r = solver.solve(&a, &v, &b, &mut vec![0.0; a.n]);
+        assert!(matches!(r, Err(Error::Solver(ref m)) if m.contains("direct fallback")), "{r:?}");
+    }
+}

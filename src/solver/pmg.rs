@@ -1,0 +1,439 @@
+//! p-multigrid preconditioner: a V-cycle over nested levels with Chebyshev
+//! smoothing on block Jacobi, Galerkin coarse operators A_k = P_kᵀ A_{k−1} P_k,
+//! and the coarsest level factored by sparse Cholesky.
+//!
+//! The prolongations P_k and the patterns of the A_k come from outside (the
+//! caller knows the mesh: for hocurve, the orders p → p/2 → … → 1 of nested
+//! Lagrange spaces, see `assembly::multigrid_levels`). Symbolic work once
+//! (transposes, transposed patterns, Cholesky analysis), numeric work per matrix.
+//!
+//! One application on a level (a symmetric V-cycle, so that PCG may use it):
+//! x = S r; x += P B_c Pᵀ (r − A x); x += S (r − A x), B_c the cycle on the
+//! next level (A_c⁻¹ on the coarsest), where
+//! S is `degree` steps of Chebyshev iteration on D⁻¹A from zero over
+//! [λ_max/ratio, λ_max] (Adams, Brezina, Hu, Tuminaro 2003), D the nodal
+//! blocks of A; S is a polynomial in D⁻¹A times D⁻¹, hence symmetric, and the
+//! cycle costs 2·degree products with A.
+
+use rayon::prelude::*;
+
+use super::pcg::{axpby_in_place, dot, BlockJacobi, SymmetricOperator};
+use super::{SparseCholesky, SymmetricCsc};
+use crate::{Error, Result};
+
+/// A rectangular sparse matrix by compressed rows (u32 column indices).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SparseRows {
+    pub n_rows: usize,
+    pub n_cols: usize,
+    pub row_ptr: Vec<usize>,
+    pub col: Vec<u32>,
+    pub val: Vec<f64>,
+}
+
+impl SparseRows {
+    /// Build from one list of (column, value) per row.
+    pub fn from_rows(n_cols: usize, rows: &[Vec<(u32, f64)>]) -> SparseRows {
+        let mut m = SparseRows { n_rows: rows.len(), n_cols, row_ptr: vec![0], ..Default::default() };
+        for row in rows {
+            for &(c, v) in row {
+                m.col.push(c);
+                m.val.push(v);
+            }
+            m.row_ptr.push(m.col.len());
+        }
+        m
+    }
+
+    /// y = M x.
+    pub fn matvec_into(&self, x: &[f64], y: &mut [f64]) {
+        y.par_chunks_mut(1024).enumerate().for_each(|(i, yc)| {
+            for (j, yr) in yc.iter_mut().enumerate() {
+                let r = i * 1024 + j;
+                *yr = (self.row_ptr[r]..self.row_ptr[r + 1]).map(|k| self.val[k] * x[self.col[k] as usize]).sum();
+            }
+        });
+    }
+
+    /// Mᵀ as compressed rows.
+    pub fn transpose(&self) -> SparseRows {
+        let mut ptr = vec![0usize; self.n_cols + 1];
+        for &c in &self.col {
+            ptr[c as usize + 1] += 1;
+        }
+        for i in 0..self.n_cols {
+            ptr[i + 1] += ptr[i];
+        }
+        let mut fill = ptr.clone();
+        let mut col = vec![0u32; self.col.len()];
+        let mut val = vec![0.0; self.col.len()];
+        for r in 0..self.n_rows {
+            for k in self.row_ptr[r]..self.row_ptr[r + 1] {
+                let c = self.col[k] as usize;
+                col[fill[c]] = r as u32;
+                val[fill[c]] = self.val[k];
+                fill[c] += 1;
+            }
+        }
+        SparseRows { n_rows: self.n_cols, n_cols: self.n_rows, row_ptr: ptr, col, val }
+    }
+}
+
+/// The lower-triangle values of A_c = Pᵀ A P on `coarse` (its pattern):
+/// W = A P row by row, then column J of A_c = Σ_r P[r, J] W[r, ·]. Products
+/// outside `coarse` (cancellations to round-off, for nested spaces) are dropped.
+///
+/// `op` must hold the matrix with lower-triangle `values` ([`SymmetricOperator::update`]).
+pub fn galerkin_product(
+    op: &SymmetricOperator,
+    values: &[f64],
+    p: &SparseRows,
+    pt: &SparseRows,
+    coarse: &SymmetricCsc,
+) -> Vec<f64> {
+    let nc = p.n_cols;
+    let scratch = || (vec![0.0f64; nc], vec![false; nc], Vec::<u32>::new());
+    // W = A P, one sparse row per fine row.
+    let w: Vec<Vec<(u32, f64)>> = (0..p.n_rows)
+        .into_par_iter()
+        .map_init(scratch, |(acc, seen, list), r| {
+            for (s, a) in op.row(values, r) {
+                for k in p.row_ptr[s]..p.row_ptr[s + 1] {
+                    let j = p.col[k];
+                    if !seen[j as usize] {
+                        seen[j as usize] = true;
+                        list.push(j);
+                    }
+                    acc[j as usize] += a * p.val[k];
+                }
+            }
+            let row = list.iter().map(|&j| (j, acc[j as usize])).collect();
+            for &j in list.iter() {
+                acc[j as usize] = 0.0;
+                seen[j as usize] = false;
+            }
+            list.clear();
+            row
+        })
+        .collect();
+    let cols: Vec<Vec<f64>> = (0..nc)
+        .into_par_iter()
+        .map_init(
+            || vec![0.0f64; nc],
+            |acc, jc| {
+                for k in pt.row_ptr[jc]..pt.row_ptr[jc + 1] {
+                    let (r, pr) = (pt.col[k] as usize, pt.val[k]);
+                    for &(i, wv) in &w[r] {
+                        if i as usize >= jc {
+                            acc[i as usize] += pr * wv;
+                        }
+                    }
+                }
+                let rows = &coarse.row_idx[coarse.col_ptr[jc]..coarse.col_ptr[jc + 1]];
+                let out: Vec<f64> = rows.iter().map(|&i| acc[i]).collect();
+                // Reset every touched slot (including those outside the pattern).
+                for k in pt.row_ptr[jc]..pt.row_ptr[jc + 1] {
+                    for &(i, _) in &w[pt.col[k] as usize] {
+                        acc[i as usize] = 0.0;
+                    }
+                }
+                out
+            },
+        )
+        .collect();
+    cols.concat()
+}
+
+/// Chebyshev smoothing parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ChebyshevParams {
+    /// Products with A per smoothing step (polynomial degree).
+    pub degree: usize,
+    /// The smoother targets [λ_max/ratio, λ_max] of D⁻¹A.
+    pub ratio: f64,
+    /// Power iterations for λ_max (‖D⁻¹A v‖ with ‖v‖ = 1, then times 1.1).
+    pub power_iterations: usize,
+}
+
+impl Default for ChebyshevParams {
+    fn default() -> Self {
+        ChebyshevParams { degree: 3, ratio: 30.0, power_iterations: 12 }
+    }
+}
+
+/// Chebyshev smoother on D⁻¹A for one matrix.
+pub struct Chebyshev {
+    jacobi: BlockJacobi,
+    lambda_max: f64,
+    params: ChebyshevParams,
+    power: Vec<f64>,
+}
+
+impl Chebyshev {
+    /// Invert the diagonal blocks and estimate λ_max(D⁻¹A) by power iteration
+    /// (times 1.1: the estimate approaches λ_max from below).
+    pub fn try_new(
+        op: &SymmetricOperator,
+        pattern: &SymmetricCsc,
+        values: &[f64],
+        block: usize,
+        params: ChebyshevParams,
+    ) -> Result<Chebyshev> {
+        Self::try_new_from(op, pattern, values, block, params, None)
+    }
+
+    /// [`Self::try_new`] with the power iteration started from the dominant
+    /// vector of a previous, similar matrix ([`Self::power_vector`]): then
+    /// `power_iterations / 3` steps (at least 2) suffice.
+    pub fn try_new_from(
+        op: &SymmetricOperator,
+        pattern: &SymmetricCsc,
+        values: &[f64],
+        block: usize,
+        params: ChebyshevParams,
+        start: Option<Vec<f64>>,
+    ) -> Result<Chebyshev> {
+        let jacobi = BlockJacobi::try_new(pattern, values, block)?;
+        let n = pattern.n;
+        let steps = if start.is_some() { (params.power_iterations / 3).max(2) } else { params.power_iterations.max(1) };
+        let mut v = start
+            .filter(|v| v.len() == n)
+            .unwrap_or_else(|| (0..n).map(|i| 1.0 + 0.5 * ((i as f64) * 1.618).sin()).collect());
+        let norm = dot(&v, &v).sqrt();
+        v.iter_mut().for_each(|x| *x /= norm);
+        let (mut av, mut u) = (vec![0.0; n], vec![0.0; n]);
+        let mut lambda = 0.0;
+        for _ in 0..steps {
+            op.matvec_into(values, &v, &mut av);
+            jacobi.apply_into(&av, &mut u);
+            lambda = dot(&u, &u).sqrt();
+            if !(lambda > 0.0 && lambda.is_finite()) {
+                return Err(Error::Solver(format!("Chebyshev: λ_max estimate {lambda:.3e} is not positive")));
+            }
+            std::mem::swap(&mut u, &mut v);
+            v.iter_mut().for_each(|x| *x /= lambda);
+        }
+        Ok(Chebyshev { jacobi, lambda_max: 1.1 * lambda, params, power: v })
+    }
+
+    pub fn lambda_max(&self) -> f64 {
+        self.lambda_max
+    }
+
+    /// The last power-iteration vector (a start for the next, similar matrix).
+    pub fn power_vector(self) -> Vec<f64> {
+        self.power
+    }
+
+    /// x = S r (Chebyshev from zero).
+    fn smooth_into(&self, op: &SymmetricOperator, values: &[f64], r: &[f64], x: &mut [f64], w: &mut SmootherWork) {
+        let hi = self.lambda_max;
+        let lo = hi / self.params.ratio;
+        let (theta, delta) = ((hi + lo) / 2.0, (hi - lo) / 2.0);
+        let sigma = theta / delta;
+        let mut rho = 1.0 / sigma;
+        w.res.copy_from_slice(r);
+        self.jacobi.apply_into(&w.res, &mut w.d);
+        w.d.iter_mut().for_each(|v| *v /= theta);
+        x.copy_from_slice(&w.d);
+        for _ in 1..self.params.degree {
+            op.matvec_into(values, &w.d, &mut w.t);
+            axpby_in_place(-1.0, &w.t, 1.0, &mut w.res);
+            self.jacobi.apply_into(&w.res, &mut w.z);
+            let rho_new = 1.0 / (2.0 * sigma - rho);
+            axpby_in_place(2.0 * rho_new / delta, &w.z, rho_new * rho, &mut w.d);
+            axpby_in_place(1.0, &w.d, 1.0, x);
+            rho = rho_new;
+        }
+    }
+}
+
+/// Work vectors of the smoother.
+struct SmootherWork {
+    res: Vec<f64>,
+    d: Vec<f64>,
+    t: Vec<f64>,
+    z: Vec<f64>,
+}
+
+/// One coarse level: the prolongation to the level above, its transpose, the
+/// Galerkin operator on its pattern and either a smoother (intermediate
+/// levels) or a Cholesky factor (the coarsest).
+struct Level {
+    p: SparseRows,
+    pt: SparseRows,
+    pattern: SymmetricCsc,
+    op: SymmetricOperator,
+    values: Vec<f64>,
+    smoother: Option<Chebyshev>,
+    chol: Option<(SparseCholesky, Vec<f64>)>,
+    work: SmootherWork,
+    s: Vec<f64>,
+    e: Vec<f64>,
+    rhs: Vec<f64>,
+    x: Vec<f64>,
+}
+
+/// The coarse levels of the p-multigrid V-cycle, finest first; the last one is
+/// solved by sparse Cholesky.
+pub struct Hierarchy {
+    levels: Vec<Level>,
+    block: usize,
+    params: ChebyshevParams,
+    ready: bool,
+}
+
+impl Hierarchy {
+    /// Symbolic set-up from (P_k, pattern_k) per coarse level, finest first:
+    /// P_k maps level k to level k − 1 (level 0 is the fine matrix).
+    pub fn try_new(
+        levels: Vec<(SparseRows, SymmetricCsc)>,
+        block: usize,
+        params: ChebyshevParams,
+    ) -> Result<Hierarchy> {
+        let n_levels = levels.len();
+        let mut out = Vec::with_capacity(n_levels);
+        for (k, (p, pattern)) in levels.into_iter().enumerate() {
+            if pattern.n != p.n_cols {
+                return Err(Error::Solver(format!(
+                    "coarse pattern has {} rows, P has {} columns",
+                    pattern.n, p.n_cols
+                )));
+            }
+            let chol =
+                if k + 1 == n_levels { Some((SparseCholesky::try_analyse(&pattern)?, Vec::new())) } else { None };
+            let n = pattern.n;
+            let v = || vec![0.0; n];
+            out.push(Level {
+                pt: p.transpose(),
+                p,
+                op: SymmetricOperator::try_new(&pattern)?,
+                values: vec![0.0; pattern.nnz()],
+                pattern,
+                smoother: None,
+                chol,
+                work: SmootherWork { res: v(), d: v(), t: v(), z: v() },
+                s: v(),
+                e: v(),
+                rhs: v(),
+                x: v(),
+            });
+        }
+        Ok(Hierarchy { levels: out, block, params, ready: false })
+    }
+
+    /// Unknowns per coarse level.
+    pub fn sizes(&self) -> Vec<usize> {
+        self.levels.iter().map(|l| l.pattern.n).collect()
+    }
+
+    /// True once [`Self::try_update`] has succeeded.
+    pub fn is_ready(&self) -> bool {
+        self.ready
+    }
+
+    /// Numeric set-up for the fine matrix held by `op`: Galerkin operators
+    /// level by level, smoothers, and the factor of the coarsest.
+    pub fn try_update(&mut self, op: &SymmetricOperator, values: &[f64]) -> Result<()> {
+        self.ready = false;
+        for k in 0..self.levels.len() {
+            let (above, rest) = self.levels.split_at_mut(k);
+            let l = &mut rest[0];
+            l.values = match above.last() {
+                None => galerkin_product(op, values, &l.p, &l.pt, &l.pattern),
+                Some(a) => galerkin_product(&a.op, &a.values, &l.p, &l.pt, &l.pattern),
+            };
+            l.op.update(&l.values);
+            if let Some((chol, factor)) = &mut l.chol {
+                *factor = chol.try_factor(&l.pattern, &l.values)?;
+            } else {
+                l.smoother = Some(Chebyshev::try_new(&l.op, &l.pattern, &l.values, self.block, self.params)?);
+            }
+        }
+        self.ready = true;
+        Ok(())
+    }
+
+    /// x = B_k r on coarse level k (V-cycle from there down).
+    fn cycle_on(&mut self, k: usize) -> Result<()> {
+        let (now, below) = self.levels.split_at_mut(k + 1);
+        let l = &mut now[k];
+        if let Some((chol, factor)) = &l.chol {
+            l.x.copy_from_slice(&l.rhs);
+            return chol.try_solve_in_place(factor, &mut l.x);
+        }
+        let smoother = l.smoother.as_ref().ok_or_else(|| Error::Solver("p-multigrid level not set up".into()))?;
+        smoother.smooth_into(&l.op, &l.values, &l.rhs, &mut l.x, &mut l.work);
+        l.op.matvec_into(&l.values, &l.x, &mut l.s);
+        axpby_in_place(1.0, &l.rhs, -1.0, &mut l.s);
+        let next = &mut below[0];
+        next.pt.matvec_into(&l.s, &mut next.rhs);
+        self.cycle_on(k + 1)?;
+        let (now, below) = self.levels.split_at_mut(k + 1);
+        let (l, next) = (&mut now[k], &below[0]);
+        next.p.matvec_into(&next.x, &mut l.e);
+        axpby_in_place(1.0, &l.e, 1.0, &mut l.x);
+        l.op.matvec_into(&l.values, &l.x, &mut l.s);
+        axpby_in_place(1.0, &l.rhs, -1.0, &mut l.s);
+        let smoother = l.smoother.as_ref().expect("checked above");
+        smoother.smooth_into(&l.op, &l.values, &l.s, &mut l.e, &mut l.work);
+        axpby_in_place(1.0, &l.e, 1.0, &mut l.x);
+        Ok(())
+    }
+}
+
+/// The p-multigrid V-cycle z = B r for the fine matrix (`op`, `values`):
+/// smoothing with `smoother` on the fine level, the coarse levels of `coarse`.
+pub struct VCycle<'a> {
+    op: &'a SymmetricOperator,
+    values: &'a [f64],
+    smoother: &'a Chebyshev,
+    coarse: Option<&'a mut Hierarchy>,
+    work: SmootherWork,
+    s: Vec<f64>,
+    e: Vec<f64>,
+}
+
+impl<'a> VCycle<'a> {
+    pub fn new(
+        op: &'a SymmetricOperator,
+        values: &'a [f64],
+        smoother: &'a Chebyshev,
+        coarse: Option<&'a mut Hierarchy>,
+    ) -> VCycle<'a> {
+        let n = op.n();
+        let coarse = coarse.filter(|c| !c.levels.is_empty() && c.levels.iter().all(|l| l.pattern.n > 0));
+        let v = || vec![0.0; n];
+        let work = SmootherWork { res: v(), d: v(), t: v(), z: v() };
+        VCycle { op, values, smoother, coarse, work, s: v(), e: v() }
+    }
+
+    /// z = B r.
+    pub fn apply_into(&mut self, r: &[f64], z: &mut [f64]) -> Result<()> {
+        let (op, values) = (self.op, self.values);
+        self.smoother.smooth_into(op, values, r, z, &mut self.work);
+        let Some(coarse) = self.coarse.as_deref_mut() else {
+            return Ok(());
+        };
+        if !coarse.ready {
+            return Err(Error::Solver("p-multigrid hierarchy not set up".into()));
+        }
+        // s = r − A z; z += P B_1 Pᵀ s
+        op.matvec_into(values, z, &mut self.s);
+        axpby_in_place(1.0, r, -1.0, &mut self.s);
+        {
+            let l = &mut coarse.levels[0];
+            l.pt.matvec_into(&self.s, &mut l.rhs);
+        }
+        coarse.cycle_on(0)?;
+        let l = &coarse.levels[0];
+        l.p.matvec_into(&l.x, &mut self.e);
+        axpby_in_place(1.0, &self.e, 1.0, z);
+        // z += S (r − A z)
+        op.matvec_into(values, z, &mut self.s);
+        axpby_in_place(1.0, r, -1.0, &mut self.s);
+        self.smoother.smooth_into(op, values, &self.s, &mut self.e, &mut self.work);
+        axpby_in_place(1.0, &self.e, 1.0, z);
+        Ok(())
+    }
+}

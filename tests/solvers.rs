@@ -1,0 +1,179 @@
+//! The iterative solver path (issue 5): PCG with the p-multigrid
+//! preconditioner gives the direct solver's meshes, its coarse operators are
+//! the Galerkin products, and it beats Jacobi-preconditioned CG.
+
+use hocurve::assembly::{assemble, color_cells, multigrid_levels, DofMap, LinearElasticKernel};
+use hocurve::cases::{self, Case};
+use hocurve::curve::{curve, CurveOptions, CurvedMesh, Formulation};
+use hocurve::mapping::ElementCache;
+use hocurve::material::{LinearElastic, MaterialModel};
+use hocurve::mesh::{validate_and_orient, HighOrderMesh, Topology};
+use hocurve::quadrature::simplex_rule;
+use hocurve::reference::{LagrangeBasis, NodeSet, NodeSpacing};
+use hocurve::solver::pcg::{try_pcg, BlockJacobi, PcgParams, SymmetricOperator};
+use hocurve::solver::pmg::galerkin_product;
+use hocurve::solver::{IterativeParams, IterativeSolver, LinearSolver, SolverChoice, SymmetricCsc};
+
+fn run(case: &Case, order: usize, formulation: Formulation, solver: SolverChoice) -> hocurve::Result<CurvedMesh> {
+    let mut mesh = case.mesh.clone();
+    mesh.retain_tags(|d, t| case.projector.get(d, t).is_some());
+    let material =
+        if formulation == Formulation::Ile { MaterialModel::LinearElastic } else { MaterialModel::NeoHookean };
+    let opts = CurveOptions { order, increments: 2, formulation, material, solver, ..Default::default() };
+    curve(&mesh, &case.projector, &opts, &mut |_| true)
+}
+
+/// Median length of the cells' vertex-to-vertex edges (the mesh size).
+fn mesh_size(m: &HighOrderMesh) -> f64 {
+    let nv = m.dim() + 1;
+    let mut h = Vec::new();
+    for c in 0..m.n_cells() {
+        let cell = m.cell(c);
+        for i in 0..nv {
+            for j in i + 1..nv {
+                let (a, b) = (m.node(cell[i]), m.node(cell[j]));
+                h.push(((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt());
+            }
+        }
+    }
+    h.sort_by(f64::total_cmp);
+    h[h.len() / 2]
+}
+
+fn assert_same_mesh(direct: &CurvedMesh, iterative: &CurvedMesh, what: &str) {
+    let h = mesh_size(&direct.mesh);
+    let worst = direct.mesh.coords.iter().zip(&iterative.mesh.coords).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    println!(
+        "{what}: max |x_direct - x_iterative| = {worst:.2e} (h = {h:.3}), iterations {:?}",
+        iterative.report.solver_iterations
+    );
+    assert!(worst < 1e-7 * h, "{what}: nodes differ by {worst:e} (h = {h})");
+    let (qd, qi) = (&direct.report.quality, &iterative.report.quality);
+    assert!((qd.min_q3 - qi.min_q3).abs() < 1e-7 && (qd.mean_q3 - qi.mean_q3).abs() < 1e-7, "{what}: quality differs");
+}
+
+#[test]
+fn iterative_and_direct_solvers_curve_the_sphere_cavity_alike_at_p_2_and_3() {
+    let case = cases::sphere_in_box_3d(3, 3);
+    for p in [2, 3] {
+        let d = run(&case, p, Formulation::Ile, SolverChoice::Direct).unwrap();
+        let i = run(&case, p, Formulation::Ile, SolverChoice::Iterative).unwrap();
+        assert_eq!(d.report.linear_solver, "direct");
+        assert_eq!(i.report.linear_solver, "pcg-pmg");
+        assert!(i.report.solver_iterations.iter().all(|&n| n > 0 && n < 100), "{:?}", i.report.solver_iterations);
+        assert_same_mesh(&d, &i, &format!("sphere p={p}"));
+    }
+}
+
+#[test]
+fn iterative_and_direct_solvers_curve_the_2d_cylinder_alike() {
+    let case = cases::cylinder_channel_2d(24, 6, 25.0);
+    let d = run(&case, 4, Formulation::Ile, SolverChoice::Direct).unwrap();
+    let i = run(&case, 4, Formulation::Ile, SolverChoice::Iterative).unwrap();
+    assert_same_mesh(&d, &i, "cylinder p=4");
+}
+
+#[test]
+fn cil_with_the_iterative_solver_matches_the_direct_one_or_falls_back() {
+    let case = cases::sphere_in_box_3d(2, 3);
+    let d = run(&case, 2, Formulation::Cil, SolverChoice::Direct).unwrap();
+    let i = run(&case, 2, Formulation::Cil, SolverChoice::Iterative).unwrap();
+    assert_same_mesh(&d, &i, "sphere CIL p=2");
+}
+
+#[test]
+fn auto_and_iterative_choices_parse() {
+    assert_eq!(SolverChoice::parse("Iterative").unwrap(), SolverChoice::Iterative);
+    assert_eq!(SolverChoice::Iterative.name(), "iterative");
+}
+
+/// K_ff of the straight order-p sphere cavity mesh.
+fn system(p: usize) -> (HighOrderMesh, DofMap, SymmetricCsc, Vec<f64>, Vec<f64>) {
+    let case = cases::sphere_in_box_3d(2, 3);
+    let (lin, _) = validate_and_orient(&case.mesh).unwrap();
+    let topo = Topology::new(&lin).unwrap();
+    let nodes = NodeSet::new(topo.simplex, p, NodeSpacing::Optimal);
+    let mesh = HighOrderMesh::elevate(&lin, &topo, &nodes, NodeSpacing::Optimal).unwrap();
+    let dofs = DofMap::new(&mesh);
+    let pattern = dofs.pattern(&mesh);
+    let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(topo.simplex, 2 * p));
+    let kernel = LinearElasticKernel { cache, material: LinearElastic::try_from_young_poisson(1.0, 0.45).unwrap() };
+    let prescribed: Vec<f64> = (0..mesh.coords.len()).map(|i| 0.01 * (i as f64 * 0.1).sin()).collect();
+    let (values, rhs) =
+        assemble(&mesh, &mesh.coords, &dofs, &pattern, &color_cells(&mesh), &kernel, &prescribed, false).unwrap();
+    (mesh, dofs, pattern, values, rhs)
+}
+
+#[test]
+fn galerkin_coarse_operator_is_the_symmetric_triple_product() {
+    let (mesh, dofs, pattern, values, _) = system(2);
+    let levels = multigrid_levels(&mesh, &dofs);
+    let (pm, cp) = &levels[0];
+    let mut op = SymmetricOperator::try_new(&pattern).unwrap();
+    op.update(&values);
+    let ac = galerkin_product(&op, &values, pm, &pm.transpose(), cp);
+    // Dense Pᵀ A P column by column.
+    let (nf, nc) = (pm.n_rows, pm.n_cols);
+    let mut dense = vec![0.0; nc * nc];
+    let (mut e, mut pe, mut ape) = (vec![0.0; nc], vec![0.0; nf], vec![0.0; nf]);
+    let pt = pm.transpose();
+    let mut col = vec![0.0; nc];
+    for j in 0..nc {
+        e.fill(0.0);
+        e[j] = 1.0;
+        pm.matvec_into(&e, &mut pe);
+        op.matvec_into(&values, &pe, &mut ape);
+        pt.matvec_into(&ape, &mut col);
+        for i in 0..nc {
+            dense[i * nc + j] = col[i];
+        }
+    }
+    let scale = dense.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let mut in_pattern = vec![false; nc * nc];
+    for j in 0..nc {
+        for k in cp.col_ptr[j]..cp.col_ptr[j + 1] {
+            let i = cp.row_idx[k];
+            in_pattern[i * nc + j] = true;
+            in_pattern[j * nc + i] = true;
+            assert!((ac[k] - dense[i * nc + j]).abs() < 1e-12 * scale, "entry ({i}, {j})");
+        }
+    }
+    for i in 0..nc {
+        for j in 0..nc {
+            assert!((dense[i * nc + j] - dense[j * nc + i]).abs() < 1e-12 * scale, "not symmetric at ({i}, {j})");
+            if !in_pattern[i * nc + j] {
+                assert!(dense[i * nc + j].abs() < 1e-12 * scale, "({i}, {j}) outside the coarse pattern");
+            }
+        }
+    }
+}
+
+#[test]
+fn pmultigrid_needs_far_fewer_iterations_than_jacobi_pcg() {
+    for p in [2, 4] {
+        let (mesh, dofs, pattern, values, rhs) = system(p);
+        let params = IterativeParams::default();
+        let mut pmg = IterativeSolver::try_new(&pattern, 3, multigrid_levels(&mesh, &dofs), params).unwrap();
+        let mut x = vec![0.0; pattern.n];
+        let it_pmg = pmg.solve(&pattern, &values, &rhs, &mut x).unwrap().iterations;
+        let mut op = SymmetricOperator::try_new(&pattern).unwrap();
+        op.update(&values);
+        let jac = BlockJacobi::try_new(&pattern, &values, 1).unwrap();
+        let mut y = vec![0.0; pattern.n];
+        let it_jac = try_pcg(
+            &mut |v, w| op.matvec_into(&values, v, w),
+            &mut |r, z| {
+                jac.apply_into(r, z);
+                Ok(())
+            },
+            &rhs,
+            &mut y,
+            PcgParams { rtol: 1e-8, max_iterations: 20_000 },
+        )
+        .unwrap();
+        println!("p={p}: {} unknowns, p-multigrid {it_pmg} iterations, Jacobi {it_jac}", pattern.n);
+        assert!(4 * it_pmg < it_jac, "p={p}: p-multigrid {it_pmg} vs Jacobi {it_jac}");
+        let scale = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!(x.iter().zip(&y).all(|(a, b)| (a - b).abs() < 1e-6 * scale));
+    }
+}
