@@ -163,6 +163,8 @@ int main(void) {
   EXPECT("set_projector: NULL handle", hoc_mesh_set_projector(NULL, sphere_box_projector, NULL), NULL, NULLP);
   EXPECT("set_progress: NULL handle", hoc_mesh_set_progress(NULL, progress_cancel, NULL), NULL, NULLP);
   EXPECT("set_threads: NULL handle", hoc_mesh_set_threads(NULL, 1), NULL, NULLP);
+  EXPECT("set_remove_caps: NULL handle", hoc_mesh_set_remove_caps(NULL, 1), NULL, NULLP);
+  EXPECT("get_input_cells: NULL handle", hoc_mesh_get_input_cells(NULL, 0, NULL), NULL, NULLP);
   EXPECT("set_order: NULL handle", hoc_mesh_set_order(NULL, 2, HOC_SPACING_OPTIMAL), NULL, NULLP);
   EXPECT("set_material: NULL handle", hoc_mesh_set_material(NULL, HOC_MATERIAL_LINEAR_ELASTIC, 1, 0.3), NULL, NULLP);
   EXPECT("set_formulation: NULL handle", hoc_mesh_set_formulation(NULL, HOC_FORMULATION_LINEAR), NULL, NULLP);
@@ -223,6 +225,7 @@ int main(void) {
     CHECK_OK(mesh, hoc_mesh_set_newton(mesh, 1e-8, 50));
   }
   EXPECT("set_threads: -1", hoc_mesh_set_threads(mesh, -1), mesh, BADARG);
+  EXPECT("set_remove_caps: 2", hoc_mesh_set_remove_caps(mesh, 2), mesh, BADARG);
   EXPECT("write: unknown extension", hoc_mesh_write(mesh, "out.xyz"), mesh, BADARG, HOC_ERROR_IO);
   EXPECT("write: missing directory", hoc_mesh_write(mesh, "/nonexistent-dir/out.msh"), mesh, HOC_ERROR_IO);
   /* A good call after a failed one: the handle is still usable, and the settings survived. */

@@ -11,7 +11,7 @@ int main(int argc, char **argv) {
   CHECK(fixture_tetgen_sphere_box(subdivisions, 4, max_volume, &m) == 0, "TetGen failed");
   printf("TetGen sphere cavity: %zu vertices, %zu tets, %zu boundary triangles\n", m.n_vertices,
          m.n_cells, m.n_facets);
-  RunSettings cil = {HOC_FORMULATION_CIL, HOC_MATERIAL_NEO_HOOKEAN, 3, 0};
+  RunSettings cil = {HOC_FORMULATION_CIL, HOC_MATERIAL_NEO_HOOKEAN, 3, 0, 0};
   curve_and_check_with("sphere CIL neo-Hookean", &m, sphere_box_projector, FIXTURE_SPHERE_TAG,
                        dist_sphere, 2, cil);
   fixture_mesh_free(&m);

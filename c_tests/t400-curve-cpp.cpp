@@ -131,8 +131,11 @@ int main() {
   // Nodes on sphere facets (found on the straight mesh) are on the sphere.
   std::vector<int64_t> native = target.cells();
   std::vector<unsigned char> on(x.size() / 3);
+  std::size_t n_boundary = 0;
   std::size_t moved_nodes = mark_surface_nodes(&fx, 1, n_cells, npc, native.data(), straight.data(),
-                                               on.size(), on.data());
+                                               on.size(), on.data(), &n_boundary);
+  REQUIRE(n_boundary == fx.n_facets, "%zu boundary faces, %zu given", n_boundary, fx.n_facets);
+  REQUIRE(target.input_cells().size() == n_cells, "one input cell per cell");
   double worst = 0.0;
   for (std::size_t i = 0; i < on.size(); ++i)
     if (on[i]) worst = std::fmax(worst, dist_sphere(&x[3 * i]));

@@ -184,6 +184,22 @@ module hocurve
       integer(c_int) :: status
     end function hoc_mesh_set_threads
 
+    function hoc_mesh_set_remove_caps(mesh, remove) bind(C, name="hoc_mesh_set_remove_caps") result(status)
+      import :: c_int, c_ptr
+      type(c_ptr), value :: mesh
+      integer(c_int), value :: remove
+      integer(c_int) :: status
+    end function hoc_mesh_set_remove_caps
+
+    function hoc_mesh_get_input_cells(mesh, n_cells, input_cells) &
+        bind(C, name="hoc_mesh_get_input_cells") result(status)
+      import :: c_int, c_ptr, c_size_t, c_int64_t
+      type(c_ptr), value :: mesh
+      integer(c_size_t), value :: n_cells
+      integer(c_int64_t) :: input_cells(*)
+      integer(c_int) :: status
+    end function hoc_mesh_get_input_cells
+
     function hoc_mesh_set_order(mesh, order, spacing) bind(C, name="hoc_mesh_set_order") result(status)
       import :: c_int, c_ptr
       type(c_ptr), value :: mesh
@@ -318,7 +334,7 @@ module hocurve
 
   public :: hoc_mesh_create, hoc_mesh_destroy, hoc_mesh_set_boundary, hoc_mesh_set_feature_edges, &
             hoc_mesh_set_projector, hoc_mesh_set_progress, hoc_mesh_set_linear_solver, &
-            hoc_mesh_set_threads, hoc_mesh_set_order, &
+            hoc_mesh_set_threads, hoc_mesh_set_remove_caps, hoc_mesh_get_input_cells, hoc_mesh_set_order, &
             hoc_mesh_set_material, hoc_mesh_set_formulation, hoc_mesh_set_newton, hoc_mesh_set_fibres, &
             hoc_mesh_run_increments, &
             hoc_mesh_quality, hoc_mesh_cell_quality, hoc_mesh_node_count, hoc_mesh_cell_count, &

@@ -347,6 +347,22 @@ HocStatus hoc_mesh_set_linear_solver(HocMesh *mesh, HocLinearSolverFn solve, voi
 HocStatus hoc_mesh_set_threads(HocMesh *mesh, int n_threads);
 
 /**
+ * Whether boundary caps are removed before curving (default 1). A cap is a
+ * tet with two faces on the same smooth surface (same tag, normals within
+ * 45°) sharing an edge, its other faces and chord interior: curving makes its
+ * Jacobian vanish along that edge, so it comes out inverted whatever the
+ * interior does. Removing it flips that surface edge to the chord; the curved
+ * mesh covers the same domain with fewer cells (see hoc_mesh_cell_count and
+ * hoc_mesh_get_input_cells). 2D meshes are never changed. Discards a curved
+ * result.
+ *
+ * @param[in,out] mesh the handle
+ * @param[in] remove 1 to remove caps, 0 to keep every cell as given
+ * @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
+ */
+HocStatus hoc_mesh_set_remove_caps(HocMesh *mesh, int remove);
+
+/**
  * Polynomial order (1..10) and node spacing. Discards a curved result.
  *
  * @param[in,out] mesh the handle
@@ -449,6 +465,18 @@ HocStatus hoc_mesh_node_count(const HocMesh *mesh, size_t *n_nodes);
  * @return HOC_OK or HOC_ERROR_NULL_POINTER
  */
 HocStatus hoc_mesh_cell_count(const HocMesh *mesh, size_t *n_cells, size_t *nodes_per_cell);
+
+/**
+ * For each cell of the current mesh, the index (0-based) of the input cell
+ * it is: the cells are the input cells in their order, less the boundary
+ * caps removed (hoc_mesh_set_remove_caps).
+ *
+ * @param[in] mesh the handle
+ * @param[in] n_cells must equal the count of hoc_mesh_cell_count
+ * @param[out] input_cells `n_cells` indices
+ * @return HOC_OK, HOC_ERROR_NULL_POINTER or HOC_ERROR_BUFFER_SIZE
+ */
+HocStatus hoc_mesh_get_input_cells(const HocMesh *mesh, size_t n_cells, int64_t *input_cells);
 
 /**
  * Node coordinates of the current mesh (`n_nodes * dim` doubles). Nodes

@@ -215,6 +215,8 @@ class Mesh {
   }
   /** 0 = all cores. */
   void set_threads(int n_threads) { check(hoc_mesh_set_threads(mesh_, n_threads), mesh_); }
+  /** Remove boundary caps before curving (default true). */
+  void set_remove_caps(bool remove) { check(hoc_mesh_set_remove_caps(mesh_, remove ? 1 : 0), mesh_); }
   void set_order(int order, HocNodeSpacing spacing = HOC_SPACING_OPTIMAL) {
     check(hoc_mesh_set_order(mesh_, order, spacing), mesh_);
   }
@@ -281,6 +283,12 @@ class Mesh {
     auto c = cell_count();
     std::vector<int64_t> ids(c.first * c.second);
     check(hoc_mesh_get_cells(mesh_, ordering, ids.size(), ids.data()), mesh_);
+    return ids;
+  }
+  /** For each current cell, the index of the input cell it is. */
+  std::vector<int64_t> input_cells() const {
+    std::vector<int64_t> ids(cell_count().first);
+    check(hoc_mesh_get_input_cells(mesh_, ids.size(), ids.data()), mesh_);
     return ids;
   }
   /** Writes .msh or .vtu by extension. */

@@ -11,7 +11,7 @@
 use crate::curve::{curve, validate_options, CurveOptions, CurveReport, Formulation, Progress};
 use crate::geometry::Projector;
 pub use crate::material::MaterialModel;
-use crate::mesh::{validate_and_orient, HighOrderMesh, LinearMesh, Topology};
+use crate::mesh::{remove_boundary_caps, validate_and_orient, HighOrderMesh, LinearMesh, Topology};
 use crate::quality::{self, ElementQuality, MeshQuality};
 use crate::reference::{ordering, NodeSet, NodeSpacing};
 use crate::solver::{ExternalSolver, SolverChoice};
@@ -33,7 +33,12 @@ pub enum NodeOrdering {
 
 /// See the module documentation.
 pub struct Session {
+    /// The validated mesh as the host gave it, with its tags.
+    input: LinearMesh,
+    /// `input` without its boundary caps (when `opts.remove_caps`): the mesh that is curved.
     linear: LinearMesh,
+    /// For each cell of `linear`, its index in `input`.
+    input_cell: Vec<usize>,
     topo: Topology,
     opts: CurveOptions,
     projector: Option<Box<dyn Projector + Send>>,
@@ -52,12 +57,14 @@ impl Session {
     /// Validate and orient the linear mesh; the session starts at order 1
     /// with the default options otherwise.
     pub fn try_new(linear: LinearMesh) -> Result<Session> {
-        let (linear, _) = validate_and_orient(&linear)?;
-        let topo = Topology::new(&linear)?;
+        let (input, _) = validate_and_orient(&linear)?;
         let opts = CurveOptions { order: 1, ..Default::default() };
+        let (linear, input_cell, topo) = without_caps(&input, &opts)?;
         let (mesh, cell_quality, quality) = straight(&linear, &topo, &opts)?;
         Ok(Session {
+            input,
             linear,
+            input_cell,
             topo,
             opts,
             projector: None,
@@ -93,10 +100,21 @@ impl Session {
         self.report.as_ref()
     }
 
-    /// Rebuild the straight mesh for new settings; on error nothing changes.
-    fn reset(&mut self, linear: LinearMesh, opts: CurveOptions) -> Result<()> {
-        let (mesh, cq, q) = straight(&linear, &self.topo, &opts)?;
+    /// For each cell of the current mesh, its index among the cells the host
+    /// gave (they differ only by the boundary caps removed).
+    pub fn input_cells(&self) -> &[usize] {
+        &self.input_cell
+    }
+
+    /// Rebuild the straight mesh for a new input mesh or settings; on error
+    /// nothing changes.
+    fn reset(&mut self, input: LinearMesh, opts: CurveOptions) -> Result<()> {
+        let (linear, input_cell, topo) = without_caps(&input, &opts)?;
+        let (mesh, cq, q) = straight(&linear, &topo, &opts)?;
+        self.input = input;
         self.linear = linear;
+        self.input_cell = input_cell;
+        self.topo = topo;
         self.opts = opts;
         self.mesh = mesh;
         self.cell_quality = cq;
@@ -107,7 +125,7 @@ impl Session {
 
     /// Tag boundary facets (`dim` vertices each). Replaces earlier tags.
     pub fn set_boundary(&mut self, facets: Vec<usize>, tags: Vec<i32>) -> Result<()> {
-        let mut linear = self.linear.clone();
+        let mut linear = self.input.clone();
         linear.facets = facets;
         linear.facet_tags = tags;
         let (linear, _) = validate_and_orient(&linear)?;
@@ -116,7 +134,7 @@ impl Session {
 
     /// Tag 3D feature edges with CAD curve tags. Replaces earlier ones.
     pub fn set_feature_edges(&mut self, edges: Vec<usize>, tags: Vec<i32>) -> Result<()> {
-        let mut linear = self.linear.clone();
+        let mut linear = self.input.clone();
         linear.feature_edges = edges;
         linear.feature_edge_tags = tags;
         let (linear, _) = validate_and_orient(&linear)?;
@@ -126,7 +144,14 @@ impl Session {
     pub fn set_order(&mut self, order: usize, spacing: NodeSpacing) -> Result<()> {
         let opts = CurveOptions { order, spacing, ..self.opts.clone() };
         validate_options(&opts)?;
-        self.reset(self.linear.clone(), opts)
+        self.reset(self.input.clone(), opts)
+    }
+
+    /// Whether boundary caps are removed before curving (default true; see
+    /// [`crate::mesh::caps`]). The current mesh is rebuilt straight.
+    pub fn set_remove_caps(&mut self, remove: bool) -> Result<()> {
+        let opts = CurveOptions { remove_caps: remove, ..self.opts.clone() };
+        self.reset(self.input.clone(), opts)
     }
 
     /// Material model and constants (E > 0, 0 ≤ ν < 0.5). Whether the model
@@ -160,11 +185,11 @@ impl Session {
     /// the paper's default). Checked at the next run.
     pub fn set_fibres(&mut self, fibres: Option<Vec<[f64; 3]>>) -> Result<()> {
         if let Some(f) = &fibres {
-            if f.len() != self.linear.n_cells() {
+            if f.len() != self.input.n_cells() {
                 return Err(Error::InvalidInput(format!(
                     "{} fibre directions for {} cells",
                     f.len(),
-                    self.linear.n_cells()
+                    self.input.n_cells()
                 )));
             }
         }
@@ -198,7 +223,11 @@ impl Session {
     /// Curve the mesh in `increments` load increments. On error the session
     /// is exactly as before the call.
     pub fn run(&mut self, increments: usize) -> Result<()> {
-        let mut opts = CurveOptions { increments, ..self.opts.clone() };
+        // The caps are already removed from `linear`; fibres are per input cell.
+        let mut opts = CurveOptions { increments, remove_caps: false, ..self.opts.clone() };
+        if let Some(f) = &self.opts.fibres {
+            opts.fibres = Some(self.input_cell.iter().map(|&c| f[c]).collect());
+        }
         if let Some(e) = &self.external_solver {
             opts.solver = SolverChoice::External(e.clone());
         }
@@ -231,7 +260,10 @@ impl Session {
         self.mesh = curved.mesh;
         self.quality = curved.report.quality.clone();
         self.cell_quality = curved.cell_quality;
-        self.report = Some(curved.report);
+        let mut report = curved.report;
+        report.removed_caps = self.input.n_cells() - self.linear.n_cells();
+        report.input_cell = self.input_cell.clone();
+        self.report = Some(report);
         Ok(())
     }
 
@@ -247,6 +279,15 @@ impl Session {
         let perm = ordering::permutation(&nodes.multi, &target).expect("orderings are permutations of the node set");
         m.cells.chunks_exact(nodes.len()).flat_map(|c| perm.iter().map(move |&k| c[k])).collect()
     }
+}
+
+/// The mesh to curve: `input` without its boundary caps if `opts.remove_caps`,
+/// the input index of each of its cells, and its topology.
+fn without_caps(input: &LinearMesh, opts: &CurveOptions) -> Result<(LinearMesh, Vec<usize>, Topology)> {
+    let (linear, input_cell) =
+        if opts.remove_caps { remove_boundary_caps(input) } else { (input.clone(), (0..input.n_cells()).collect()) };
+    let topo = Topology::new(&linear)?;
+    Ok((linear, input_cell, topo))
 }
 
 /// Elevate with straight sides; quality is exactly 1 for affine elements.

@@ -100,3 +100,46 @@ fn results_are_bitwise_identical_for_any_thread_count() {
     // Coloured assembly is deterministic: bitwise the same.
     assert_eq!(a.mesh().coords, b.mesh().coords);
 }
+
+/// Leaves every point where it is.
+struct Identity;
+
+impl Projector for Identity {
+    fn project(&self, _: usize, _: i32, pts: &[[f64; 3]], out: &mut [[f64; 3]]) -> Result<(), String> {
+        out.copy_from_slice(pts);
+        Ok(())
+    }
+}
+
+#[test]
+fn boundary_caps_are_removed_when_the_boundary_is_set_and_can_be_kept() {
+    use hocurve::mesh::LinearMesh;
+    // A flat cap (0, 1, 2, 3) under the ridge 01 (both faces tag 1) on two tets.
+    let mesh = LinearMesh {
+        dim: 3,
+        coords: vec![0.0, 0.0, 0.05, 1.0, 0.0, 0.05, 0.5, 1.0, 0.0, 0.5, -1.0, 0.0, 0.5, 0.0, -1.0],
+        cells: vec![0, 1, 2, 3, 0, 2, 3, 4, 1, 2, 3, 4],
+        facets: vec![],
+        facet_tags: vec![],
+        feature_edges: vec![],
+        feature_edge_tags: vec![],
+    };
+    let mut s = Session::try_new(mesh).unwrap();
+    assert_eq!(s.mesh().n_cells(), 3);
+    s.set_boundary(vec![0, 1, 2, 0, 1, 3, 0, 2, 4, 1, 2, 4, 0, 3, 4, 1, 3, 4], vec![1, 1, 2, 2, 3, 3]).unwrap();
+    assert_eq!(s.mesh().n_cells(), 2);
+    assert_eq!(s.input_cells(), &[1, 2]);
+    // Fibres are given per input cell whatever was removed.
+    s.set_fibres(Some(vec![[1.0, 0.0, 0.0]; 3])).unwrap();
+    s.set_order(2, NodeSpacing::Optimal).unwrap();
+    s.set_projector(Some(Box::new(Identity)));
+    s.run(1).unwrap();
+    let report = s.report().unwrap();
+    assert_eq!((report.removed_caps, report.cells), (1, 2));
+    assert_eq!(report.input_cell, vec![1, 2]);
+    assert_eq!(s.quality().n_invalid, 0);
+    s.set_remove_caps(false).unwrap();
+    assert_eq!(s.mesh().n_cells(), 3);
+    assert_eq!(s.input_cells(), &[0, 1, 2]);
+    assert!(s.report().is_none(), "changing the cells discards the curved result");
+}

@@ -560,6 +560,31 @@ pub unsafe extern "C" fn hoc_mesh_set_threads(mesh: *mut HocMesh, n_threads: c_i
     })
 }
 
+/// Whether boundary caps are removed before curving (default 1). A cap is a
+/// tet with two faces on the same smooth surface (same tag, normals within
+/// 45°) sharing an edge, its other faces and chord interior: curving makes its
+/// Jacobian vanish along that edge, so it comes out inverted whatever the
+/// interior does. Removing it flips that surface edge to the chord; the curved
+/// mesh covers the same domain with fewer cells (see hoc_mesh_cell_count and
+/// hoc_mesh_get_input_cells). 2D meshes are never changed. Discards a curved
+/// result.
+///
+/// @param[in,out] mesh the handle
+/// @param[in] remove 1 to remove caps, 0 to keep every cell as given
+/// @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_set_remove_caps(mesh: *mut HocMesh, remove: c_int) -> HocStatus {
+    guard(mesh, || {
+        let h = handle_mut(mesh)?;
+        let remove = match remove {
+            0 => false,
+            1 => true,
+            r => return Err(arg(format!("remove must be 0 or 1, got {r}"))),
+        };
+        h.session.set_remove_caps(remove).map_err(err)
+    })
+}
+
 /// Polynomial order (1..10) and node spacing. Discards a curved result.
 ///
 /// @param[in,out] mesh the handle
@@ -785,6 +810,37 @@ pub unsafe extern "C" fn hoc_mesh_cell_count(
         let m = h.session.mesh();
         *n_cells.as_mut().ok_or_else(|| null("n_cells"))? = m.n_cells();
         *nodes_per_cell.as_mut().ok_or_else(|| null("nodes_per_cell"))? = m.nodes_per_cell();
+        Ok(())
+    })
+}
+
+/// For each cell of the current mesh, the index (0-based) of the input cell
+/// it is: the cells are the input cells in their order, less the boundary
+/// caps removed (hoc_mesh_set_remove_caps).
+///
+/// @param[in] mesh the handle
+/// @param[in] n_cells must equal the count of hoc_mesh_cell_count
+/// @param[out] input_cells `n_cells` indices
+/// @return HOC_OK, HOC_ERROR_NULL_POINTER or HOC_ERROR_BUFFER_SIZE
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_get_input_cells(
+    mesh: *const HocMesh,
+    n_cells: usize,
+    input_cells: *mut i64,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle(mesh)?;
+        let map = h.session.input_cells();
+        if n_cells != map.len() {
+            return Err((HOC_ERROR_BUFFER_SIZE, format!("n_cells = {n_cells}, but the mesh has {} cells", map.len())));
+        }
+        if input_cells.is_null() {
+            return Err(null("input_cells"));
+        }
+        let out = std::slice::from_raw_parts_mut(input_cells, n_cells);
+        for (o, &c) in out.iter_mut().zip(map) {
+            *o = c as i64;
+        }
         Ok(())
     })
 }

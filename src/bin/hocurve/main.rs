@@ -46,12 +46,15 @@ USAGE:
                 [--formulation linear|ile] [--material linear]
                 [--young E] [--poisson NU] [--increments N]
                 [--spacing optimal|equispaced] [--solver auto|direct|iterative]
+                [--caps remove|keep]
       Curve a linear gmsh (.msh 4.1) mesh. TAG is the elementary entity tag of
       the boundary facets (or 3D feature curves) that lie on SHAPE:
         sphere:cx,cy,cz,r        circle:cx,cy,r (2D)     circle3:cx,cy,cz,nx,ny,nz,r
         cylinder:px,py,pz,ax,ay,az,r      torus:cx,cy,cz,R,r | torus:cx,cy,cz,ax,ay,az,R,r
         plane:px,py,pz,nx,ny,nz  line:px,py,pz,dx,dy,dz  naca4:DDDD,chord,x0,y0
-      Boundary facets whose tag has no shape stay straight.
+      Boundary facets whose tag has no shape stay straight. 3D boundary caps
+      (tets with two faces on one smooth surface, which cannot stay valid) are
+      removed unless --caps keep; the report says how many.
 
   hocurve quality MESH.msh [--report R.json]
       Measure Q1, Q2, Q3 of any high-order gmsh mesh.
@@ -155,6 +158,11 @@ fn options_from(args: &Args, default_order: usize) -> Result<CurveOptions> {
     o.young = args.number("young", o.young)?;
     o.poisson = args.number("poisson", o.poisson)?;
     o.increments = args.number("increments", o.increments)?;
+    o.remove_caps = match args.get("caps") {
+        None | Some("remove") => true,
+        Some("keep") => false,
+        Some(c) => return Err(Error::InvalidInput(format!("unknown --caps '{c}' (remove or keep)"))),
+    };
     if let Some(s) = args.get("solver") {
         o.solver = SolverChoice::parse(s)?;
     }
@@ -258,6 +266,7 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
             "increments",
             "spacing",
             "solver",
+            "caps",
             "output",
             "report",
         ],
@@ -406,7 +415,7 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
     format!(
         "{{\n  \"order\": {},\n  \"formulation\": \"{}\",\n  \"material\": \"{}\",\n  \"young\": {},\n  \
          \"poisson\": {},\n  \"increments\": {},\n  \"spacing\": \"{}\",\n  \"nodes\": {},\n  \"dofs\": {},\n  \
-         \"cells\": {},\n  \"projected_nodes\": {},\n  \"max_projection_distance\": {},\n{},\n  \
+         \"cells\": {},\n  \"removed_caps\": {},\n  \"projected_nodes\": {},\n  \"max_projection_distance\": {},\n{},\n  \
          \"newton_history\": {:?},\n  \"linear_solver\": \"{}\",\n  \"solver_iterations\": {:?},\n  \
          \"seconds\": {{\"total\": {}, \"elevate\": {}, \"project\": {}, \"assembly\": {}, \"setup\": {}, \"solve\": {}, \"quality\": {}}},\n  \
          \"output\": {}\n}}",
@@ -420,6 +429,7 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
         r.nodes,
         r.dofs,
         r.cells,
+        r.removed_caps,
         r.projected_nodes,
         num(r.max_projection_distance),
         quality_json(&r.quality),
