@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
 # The C/C++/Fortran side of the test suite: install hocurve into a temporary
 # prefix (scripts/install.sh), build c_tests/ against it with find_package as a
-# user would, run ctest, check pkg-config, then run the tests under valgrind.
+# user would, run ctest, check pkg-config, then run the tests under valgrind
+# and, built a second time, under AddressSanitizer + UndefinedBehaviorSanitizer
+# (LeakSanitizer included; the library's own allocations go through malloc, so
+# its leaks are caught too).
 #
-# Usage: scripts/test_c.sh            (HOCURVE_SKIP_MEMCHECK=1 skips valgrind)
+# Usage: scripts/test_c.sh   (HOCURVE_SKIP_MEMCHECK=1 skips valgrind, HOCURVE_SKIP_ASAN=1 the sanitizers)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 work=$(mktemp -d "${TMPDIR:-/tmp}/hocurve-c.XXXXXX")
@@ -31,5 +34,12 @@ status=0
 ctest --test-dir "$build" -L api -j "$jobs" --output-on-failure || status=1
 if [ $memcheck = ON ]; then
   ctest --test-dir "$build" -L memcheck -j "$jobs" --output-on-failure || status=1
+fi
+if [ "${HOCURVE_SKIP_ASAN:-0}" != 1 ]; then
+  asan=$work/build-asan
+  cmake -S "$root/c_tests" -B "$asan" -DCMAKE_PREFIX_PATH="$prefix" -DHOCURVE_TESTS_SANITIZE=address
+  cmake --build "$asan" -j "$jobs"
+  ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+    ctest --test-dir "$asan" -L api -j "$jobs" --output-on-failure || status=1
 fi
 exit $status
