@@ -22,7 +22,7 @@ int main(int argc, char **argv) {
   CHECK(HOC_ERROR_PANIC == 10 && HOC_SPACING_EQUISPACED == 1 && HOC_ORDERING_VTK == 2 &&
             HOC_FORMULATION_NONLINEAR == 4 && HOC_MATERIAL_TRANSVERSELY_ISOTROPIC_LINEAR == 5,
         "enum values differ from SPEC");
-  CHECK(sizeof(HocQuality) == 6 * sizeof(double) + 2 * sizeof(size_t), "HocQuality has padding or extra fields");
+  CHECK(sizeof(HocQuality) == 7 * sizeof(double) + 4 * sizeof(size_t), "HocQuality has padding or extra fields");
   printf("hocurve %s\n", v);
   return 0;
 }

@@ -61,11 +61,14 @@ module hocurve
   integer(c_int), parameter, public :: HOC_STAGE_INCREMENT = 2
   integer(c_int), parameter, public :: HOC_STAGE_QUALITY = 3
 
-  !> HocQuality: minima of Q1..Q5 over the cells, mean Q3, invalid and total cell counts.
+  !> HocQuality: minima of Q1..Q5 over the cells, mean Q3, invalid and total cell counts,
+  !> certified lower bound of Q3, certified-invalid and undecided cell counts.
   type, bind(C), public :: hoc_quality
     real(c_double) :: min_q1, min_q2, min_q3, min_q4, min_q5, mean_q3
     integer(c_size_t) :: n_invalid
     integer(c_size_t) :: n_cells
+    real(c_double) :: certified_min_q3
+    integer(c_size_t) :: n_certified_invalid, n_uncertain
   end type hoc_quality
 
   abstract interface

@@ -108,6 +108,20 @@ typedef struct {
   double mean_q3;
   size_t n_invalid;
   size_t n_cells;
+  /**
+   * A lower bound of Q3 over the whole of every element (Bernstein bounds
+   * of det J, not only samples): ≤ min_q3. NaN when not computed (before a
+   * run, or orders above 7 in 3D).
+   */
+  double certified_min_q3;
+  /**
+   * Cells with det J ≤ 0 at some point, found by the certified check.
+   */
+  size_t n_certified_invalid;
+  /**
+   * Cells whose sign the certified check could not decide (counted as not valid).
+   */
+  size_t n_uncertain;
 } HocQuality;
 
 /**

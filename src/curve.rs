@@ -309,7 +309,10 @@ pub fn curve(
     tick(Stage::Quality, 0, 1)?;
     let ti = opts.material.is_transversely_isotropic().then_some(&fibres[..]);
     let cell_quality = quality::cell_qualities(&quality::sampling_cache(&basis), &mesh.coords, &mesh.cells, ti);
-    let q = quality::summarize(&cell_quality);
+    let mut q = quality::summarize(&cell_quality);
+    if let Some(certified) = quality::certify_cells(&basis, &mesh.coords, &mesh.cells) {
+        quality::add_certified(&mut q, &certified);
+    }
     timings.quality = t.elapsed().as_secs_f64();
     timings.total = t0.elapsed().as_secs_f64();
     let report = CurveReport {

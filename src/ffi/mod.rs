@@ -111,6 +111,14 @@ pub struct HocQuality {
     pub mean_q3: f64,
     pub n_invalid: usize,
     pub n_cells: usize,
+    /// A lower bound of Q3 over the whole of every element (Bernstein bounds
+    /// of det J, not only samples): ≤ min_q3. NaN when not computed (before a
+    /// run, or orders above 7 in 3D).
+    pub certified_min_q3: f64,
+    /// Cells with det J ≤ 0 at some point, found by the certified check.
+    pub n_certified_invalid: usize,
+    /// Cells whose sign the certified check could not decide (counted as not valid).
+    pub n_uncertain: usize,
 }
 
 /// Projects `n_points` points (`dim` interleaved coordinates each, `dim` the
@@ -737,6 +745,9 @@ pub unsafe extern "C" fn hoc_mesh_quality(mesh: *const HocMesh, out: *mut HocQua
             mean_q3: q.mean_q3,
             n_invalid: q.n_invalid,
             n_cells: h.session.mesh().n_cells(),
+            certified_min_q3: q.certified_min_q3,
+            n_certified_invalid: q.n_certified_invalid,
+            n_uncertain: q.n_uncertain,
         };
         Ok(())
     })

@@ -12,7 +12,12 @@
 //! quadrature rule (interior) together with the equispaced lattice of order 2p
 //! (vertices, edges and faces included, where the extremes of J usually sit);
 //! an element could in principle still be inverted between samples.
+//! [`certified`] closes that gap: bounds on det J over the whole element.
 //! Read-only; never modifies the mesh.
+
+pub mod certified;
+
+pub use certified::{CertifiedJacobian, JacobianBernstein, Verdict};
 
 use rayon::prelude::*;
 
@@ -71,6 +76,14 @@ pub struct MeshQuality {
     pub worst_cell: usize,
     /// Counts of valid elements with Q3 in [k/10, (k+1)/10) (last bin includes 1).
     pub histogram: [usize; HISTOGRAM_BINS],
+    /// A lower bound of min Q3 over the whole of every element (not only the
+    /// samples), from the Bernstein bounds of det J ([`certified`]); NaN when
+    /// not computed (orders above the expansion limit).
+    pub certified_min_q3: f64,
+    /// Elements with det J ≤ 0 at some point, found by the certified check.
+    pub n_certified_invalid: usize,
+    /// Elements whose sign the certified check could not decide.
+    pub n_uncertain: usize,
 }
 
 /// Quality of one element with node coordinates `xe` (`dim` components per
@@ -178,6 +191,35 @@ pub fn cell_qualities(
         .collect()
 }
 
+/// Certified det J bounds of every cell ([`certified`]); None above the
+/// expansion limit ([`certified::MAX_LATTICE_POINTS`]).
+pub fn certify_cells(basis: &LagrangeBasis, coords: &[f64], cells: &[usize]) -> Option<Vec<CertifiedJacobian>> {
+    let jb = JacobianBernstein::new(basis)?;
+    let dim = basis.simplex().dim();
+    let npc = basis.len();
+    Some(
+        cells
+            .par_chunks_exact(npc)
+            .map_init(
+                || vec![0.0; npc * dim],
+                |xe, cell| {
+                    for (a, &n) in cell.iter().enumerate() {
+                        xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
+                    }
+                    jb.certify(basis, xe)
+                },
+            )
+            .collect(),
+    )
+}
+
+/// Add the certified figures of `cells` to `m`.
+pub fn add_certified(m: &mut MeshQuality, cells: &[CertifiedJacobian]) {
+    m.certified_min_q3 = cells.iter().map(CertifiedJacobian::q3_lower).fold(f64::INFINITY, f64::min);
+    m.n_certified_invalid = cells.iter().filter(|c| c.verdict == Verdict::Invalid).count();
+    m.n_uncertain = cells.iter().filter(|c| c.verdict == Verdict::Uncertain).count();
+}
+
 /// Reduce element qualities to the mesh figures.
 pub fn summarize(q: &[ElementQuality]) -> MeshQuality {
     let mut m = MeshQuality {
@@ -190,6 +232,9 @@ pub fn summarize(q: &[ElementQuality]) -> MeshQuality {
         n_invalid: 0,
         worst_cell: 0,
         histogram: [0; HISTOGRAM_BINS],
+        certified_min_q3: f64::NAN,
+        n_certified_invalid: 0,
+        n_uncertain: 0,
     };
     for (c, e) in q.iter().enumerate() {
         m.min_q1 = m.min_q1.min(e.q1);

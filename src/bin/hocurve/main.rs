@@ -340,8 +340,12 @@ fn cmd_quality(argv: &[String]) -> Result<()> {
         .ok_or_else(|| Error::Io("internal: gmsh ordering does not match the node set".into()))?;
     let npc = nodes.len();
     let cells: Vec<usize> = gmsh_cells.chunks_exact(npc).flat_map(|c| perm.iter().map(move |&k| c[k])).collect();
-    let cache = quality::sampling_cache(&LagrangeBasis::new(&nodes));
-    let q = quality::summarize(&quality::cell_qualities(&cache, &coords, &cells, None));
+    let basis = LagrangeBasis::new(&nodes);
+    let cache = quality::sampling_cache(&basis);
+    let mut q = quality::summarize(&quality::cell_qualities(&cache, &coords, &cells, None));
+    if let Some(certified) = quality::certify_cells(&basis, &coords, &cells) {
+        quality::add_certified(&mut q, &certified);
+    }
     let body = format!(
         "{{\n  \"file\": \"{}\",\n  \"order\": {order},\n  \"cells\": {},\n  \"nodes\": {},\n{}\n}}",
         json_escape(&input.display().to_string()),
@@ -396,7 +400,8 @@ fn num(x: f64) -> String {
 fn quality_json(q: &MeshQuality) -> String {
     format!(
         "  \"min_q1\": {},\n  \"min_q2\": {},\n  \"min_q3\": {},\n  \"min_q4\": {},\n  \"min_q5\": {},\n  \"mean_q3\": {},\n  \"invalid_elements\": {},\n  \
-         \"worst_cell\": {},\n  \"q3_histogram\": {:?}",
+         \"worst_cell\": {},\n  \"q3_histogram\": {:?},\n  \"certified_min_q3\": {},\n  \"certified_invalid_elements\": {},\n  \
+         \"uncertain_elements\": {}",
         num(q.min_q1),
         num(q.min_q2),
         num(q.min_q3),
@@ -405,7 +410,10 @@ fn quality_json(q: &MeshQuality) -> String {
         num(q.mean_q3),
         q.n_invalid,
         q.worst_cell,
-        q.histogram
+        q.histogram,
+        num(q.certified_min_q3),
+        q.n_certified_invalid,
+        q.n_uncertain
     )
 }
 
