@@ -129,6 +129,9 @@ int main(int argc, char **argv) {
   } catch (const std::exception &e) {
     std::cerr << "hocurve-occt: " << e.what() << "\n";
     status = 1;
+  } catch (const std::string &s) {  // gmsh's API throws its error message
+    std::cerr << "hocurve-occt: gmsh: " << s << "\n";
+    status = 1;
   } catch (...) {
     std::cerr << "hocurve-occt: gmsh error\n";
     status = 1;

@@ -388,6 +388,9 @@ int main(int argc, char **argv) {
   } catch (const std::exception &e) {
     std::fprintf(stderr, "occt_test: %s\n", e.what());
     rc = 1;
+  } catch (const std::string &s) {  // gmsh's API throws its error message
+    std::fprintf(stderr, "occt_test: gmsh: %s\n", s.c_str());
+    rc = 1;
   } catch (...) {
     std::fprintf(stderr, "occt_test: gmsh error\n");
     rc = 1;
