@@ -46,7 +46,8 @@ inline int model_dim() {
   if (!v.empty()) return 3;
   double x0, y0, z0, x1, y1, z1;
   gmsh::model::getBoundingBox(-1, -1, x0, y0, z0, x1, y1, z1);
-  if (std::fabs(z0) > 1e-12 * model_size() || std::fabs(z1) > 1e-12 * model_size())
+  // OpenCASCADE's bounding boxes are enlarged by the shape tolerance (about 1e-7).
+  if (std::fabs(z0) > 1e-5 * model_size() || std::fabs(z1) > 1e-5 * model_size())
     throw std::runtime_error("a model without volumes must lie in the plane z = 0");
   return 2;
 }
@@ -103,6 +104,8 @@ inline LinearMesh collect(int dim) {
       auto it = index.find(all[i]);
       if (it == index.end()) continue;
       for (int d = 0; d < dim; ++d) m.coords[dim * it->second + d] = xyz[3 * i + d];
+      if (dim == 2 && std::fabs(xyz[3 * i + 2]) > 1e-12 * m.size)
+        throw std::runtime_error("a 2D mesh node is not in the plane z = 0");
     }
   }
   m.cells.reserve(node_tags.size());

@@ -7,7 +7,7 @@
 // `check`: no invalid cell; every high-order node classified on a CAD face
 // (edge) lies on it to 1e-8 of the model size by gmsh::model::getClosestPoint,
 // nodes on a feature edge on its CAD curve; nodes of facets on planar CAD
-// faces stay in the facet's plane; vertices do not move. It also samples the
+// faces stay in the facet's plane; boundary vertices do not move. It also samples the
 // curved boundary between the nodes and prints the largest distance to CAD.
 // `fail`: the run ends with HOC_ERROR_PROJECTION and the nodes are unchanged.
 #include "occt_models.hpp"
@@ -216,8 +216,9 @@ Row curve_and_check(const occt::LinearMesh &lm, int p, bool first_p) {
   const HocQuality q = mesh.quality();
   CHECK(q.n_invalid == 0, "p = %d: %zu invalid cells (min Q3 %g)", p, q.n_invalid, q.min_q3);
   const std::vector<double> x = mesh.nodes();
-  for (std::size_t v = 0; v < lm.coords.size() / dim; ++v)
-    for (int k = 0; k < dim; ++k) CHECK(x[dim * v + k] == x0[dim * v + k], "vertex %zu moved", v);
+  for (auto &vt : vertex_tags)
+    for (int k = 0; k < dim; ++k)
+      CHECK(x[dim * vt.first + k] == x0[dim * vt.first + k], "boundary vertex %lld moved", (long long)vt.first);
 
   // Nodes on CAD curves (3D feature edges), then on CAD faces (2D: boundary curves).
   double node_dist = 0;
@@ -305,8 +306,16 @@ Row curve_and_check(const occt::LinearMesh &lm, int p, bool first_p) {
         }
       }
   }
-  for (auto &s : samples)
-    for (double d : cad_distance(dim, dim - 1, s.first, s.second)) sample_dist = std::max(sample_dist, d);
+  for (auto &s : samples) {
+    double worst = 0;
+    for (double d : cad_distance(dim, dim - 1, s.first, s.second)) worst = std::max(worst, d);
+    if (std::getenv("OCCT_DEBUG")) {
+      std::string type;
+      gmsh::model::getType(dim - 1, s.first, type);
+      std::fprintf(stderr, "  p=%d entity %d (%s): sampled %.3e\n", p, s.first, type.c_str(), worst);
+    }
+    sample_dist = std::max(sample_dist, worst);
+  }
 
   (void)first_p;
   return Row{p, n_cells, n_nodes, checked, planar, node_dist, sample_dist, q.min_q3, q.n_invalid, secs};
