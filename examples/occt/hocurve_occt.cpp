@@ -2,7 +2,7 @@
 // (OpenCASCADE) classifying every boundary facet and feature edge on its CAD
 // entity and projecting onto it.
 //
-//   hocurve-occt MODEL.step|.brep --order P [--mesh-size H] [--formulation F]
+//   hocurve-occt MODEL.step|.brep --order P [--mesh-size H] [--curvature N] [--formulation F]
 //                [--poisson NU] [--increments N] [--threads T]
 //                --output OUT.msh|.vtu [--report R.json]
 #include "occt_pipeline.hpp"
@@ -16,7 +16,7 @@
 namespace {
 
 void usage() {
-  std::cerr << "usage: hocurve-occt MODEL.step|.brep --order P [--mesh-size H] [--formulation "
+  std::cerr << "usage: hocurve-occt MODEL.step|.brep --order P [--mesh-size H] [--curvature N] [--formulation "
                "linear|ile|iil|cil|nonlinear] [--poisson NU] [--increments N] [--threads T] "
                "--output OUT.msh|.vtu [--report R.json]\n";
 }
@@ -41,7 +41,7 @@ std::string json_number(double v) {
 
 int main(int argc, char **argv) {
   std::string model, output, report, formulation = "ile";
-  int order = 0, increments = 1, threads = 0;
+  int order = 0, increments = 1, threads = 0, per_2pi = 12;
   double h = 0.0, poisson = 0.3;
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
@@ -55,6 +55,7 @@ int main(int argc, char **argv) {
     if (a == "--order") order = std::atoi(value().c_str());
     else if (a == "--mesh-size") h = std::atof(value().c_str());
     else if (a == "--formulation") formulation = value();
+    else if (a == "--curvature") per_2pi = std::atoi(value().c_str());
     else if (a == "--poisson") poisson = std::atof(value().c_str());
     else if (a == "--increments") increments = std::atoi(value().c_str());
     else if (a == "--threads") threads = std::atoi(value().c_str());
@@ -81,7 +82,7 @@ int main(int argc, char **argv) {
   try {
     occt::import_model(model);
     const int dim = occt::model_dim();
-    occt::mesh_linear(dim, h);
+    occt::mesh_linear(dim, h, per_2pi);
     occt::LinearMesh lm = occt::collect(dim);
     auto t_mesh = std::chrono::steady_clock::now();
 

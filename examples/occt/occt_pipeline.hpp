@@ -61,8 +61,11 @@ inline void import_model(const std::string &path) {
   if (out.empty()) throw std::runtime_error("no shape in " + path);
 }
 
-// Mesh the current model linearly (3D if it has volumes, else 2D) with target size h (<= 0: gmsh's default).
-inline void mesh_linear(int dim, double h) {
+// Mesh the current model linearly (3D if it has volumes, else 2D) with target
+// size h (<= 0: gmsh's default) and at least `per_2pi` elements per 2π of
+// curvature (0: off), so that a small hole gets more than a few chords.
+inline void mesh_linear(int dim, double h, int per_2pi = 12) {
+  gmsh::option::setNumber("Mesh.MeshSizeFromCurvature", per_2pi);
   if (h > 0) {
     gmsh::option::setNumber("Mesh.MeshSizeMax", h);
     gmsh::option::setNumber("Mesh.MeshSizeMin", 0.1 * h);

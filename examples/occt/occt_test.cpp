@@ -1,7 +1,8 @@
 // Tests of the gmsh/OpenCASCADE -> hocurve pipeline.
 //
 //   occt_test write DIR                       write part.step, sphere-torus.step, plate.step
-//   occt_test check MODEL H PMIN PMAX         curve at p = PMIN..PMAX and check (table on stdout)
+//   occt_test check MODEL H PMIN PMAX [N]     curve at p = PMIN..PMAX and check (table on stdout);
+//                                             N elements per 2π of curvature (default 12)
 //   occt_test fail MODEL H                    a projector failing on one CAD entity
 //
 // `check`: no invalid cell; every high-order node classified on a CAD face
@@ -321,15 +322,15 @@ Row curve_and_check(const occt::LinearMesh &lm, int p, bool first_p) {
   return Row{p, n_cells, n_nodes, checked, planar, node_dist, sample_dist, q.min_q3, q.n_invalid, secs};
 }
 
-occt::LinearMesh load(const std::string &model, double h) {
+occt::LinearMesh load(const std::string &model, double h, int per_2pi = 12) {
   occt::import_model(model);
   const int dim = occt::model_dim();
-  occt::mesh_linear(dim, h);
+  occt::mesh_linear(dim, h, per_2pi);
   return occt::collect(dim);
 }
 
-int check(const std::string &model, double h, int pmin, int pmax) {
-  occt::LinearMesh lm = load(model, h);
+int check(const std::string &model, double h, int pmin, int pmax, int per_2pi) {
+  occt::LinearMesh lm = load(model, h, per_2pi);
   std::printf("%s: dim %d, %zu vertices, %zu cells, %zu boundary facets, %zu feature edges, size %.4g\n",
               model.c_str(), lm.dim, lm.coords.size() / lm.dim, lm.cells.size() / (lm.dim + 1),
               lm.facet_tags.size(), lm.edge_tags.size(), lm.size);
@@ -377,7 +378,7 @@ int fail(const std::string &model, double h) {
 
 int main(int argc, char **argv) {
   if (argc < 3) {
-    std::fprintf(stderr, "usage: occt_test write DIR | check MODEL H PMIN PMAX | fail MODEL H\n");
+    std::fprintf(stderr, "usage: occt_test write DIR | check MODEL H PMIN PMAX [PER_2PI] | fail MODEL H\n");
     return 2;
   }
   gmsh::initialize();
@@ -389,8 +390,8 @@ int main(int argc, char **argv) {
       for (const char *name : {"part", "sphere-torus", "plate"})
         occt::write_model(name, std::string(argv[2]) + "/" + name + ".step");
       rc = 0;
-    } else if (mode == "check" && argc == 6) {
-      rc = check(argv[2], std::atof(argv[3]), std::atoi(argv[4]), std::atoi(argv[5]));
+    } else if (mode == "check" && (argc == 6 || argc == 7)) {
+      rc = check(argv[2], std::atof(argv[3]), std::atoi(argv[4]), std::atoi(argv[5]), argc == 7 ? std::atoi(argv[6]) : 12);
     } else if (mode == "fail" && argc == 4) {
       rc = fail(argv[2], std::atof(argv[3]));
     }
