@@ -33,7 +33,7 @@ HocFormulation parse_formulation(const std::string &s) {
 std::string json_number(double v) {
   if (!std::isfinite(v)) return "null";
   char buf[64];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
+  std::snprintf(buf, sizeof buf, "%.15g", v);
   return buf;
 }
 

@@ -366,11 +366,12 @@ int fail(const std::string &model, double h) {
   const std::vector<double> before = mesh.nodes();
   HocStatus st = hoc_mesh_run_increments(mesh.get(), 1);
   CHECK(st == HOC_ERROR_PROJECTION, "status %d (%s), expected HOC_ERROR_PROJECTION", st, hoc_status_string(st));
-  const char *msg = hoc_mesh_last_error(mesh.get());
+  const char *m = hoc_mesh_last_error(mesh.get());
+  const std::string msg = m ? m : "";  // valid only until the next call on the handle
   const std::vector<double> after = mesh.nodes();
   CHECK(after == before, "the nodes changed after a failed run");
   std::printf("projector failing on entity (%d, %d): %s: %s; nodes unchanged\n", lm.dim - 1, tag,
-              hoc_status_string(st), msg ? msg : "");
+              hoc_status_string(st), msg.c_str());
   return 0;
 }
 
