@@ -94,7 +94,7 @@ struct Facet {
   std::vector<int64_t> nodes;   // every node on it, vertices included
 };
 
-Row curve_and_check(const occt::LinearMesh &lm, int p, bool first_p) {
+Row curve_and_check(const occt::LinearMesh &lm, int p) {
   const int dim = lm.dim, nv = dim + 1;
   const double tol = 1e-8 * lm.size;
   occt::Projector proj;
@@ -318,7 +318,6 @@ Row curve_and_check(const occt::LinearMesh &lm, int p, bool first_p) {
     sample_dist = std::max(sample_dist, worst);
   }
 
-  (void)first_p;
   return Row{p, n_cells, n_nodes, checked, planar, node_dist, sample_dist, q.min_q3, q.n_invalid, secs};
 }
 
@@ -337,7 +336,7 @@ int check(const std::string &model, double h, int pmin, int pmax, int per_2pi) {
   std::printf("%3s %7s %8s %8s %8s %12s %14s %8s %8s %8s\n", "p", "cells", "nodes", "checked", "planar",
               "node->CAD", "between->CAD", "min Q3", "invalid", "seconds");
   for (int p = pmin; p <= pmax; ++p) {
-    Row r = curve_and_check(lm, p, p == pmin);
+    Row r = curve_and_check(lm, p);
     std::printf("%3d %7zu %8zu %8zu %8zu %12.3e %14.3e %8.4f %8zu %8.2f\n", r.p, r.cells, r.nodes, r.checked,
                 r.planar, r.node_dist, r.sample_dist, r.min_q3, r.invalid, r.secs);
     std::fflush(stdout);
