@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # System packages for the C/C++/Fortran tests (scripts/test_c.sh): compilers,
-# CMake, valgrind, and the mesh generators the test fixtures use (TetGen, CGAL).
+# CMake, valgrind, the mesh generators the test fixtures use (TetGen, CGAL), and
+# gmsh's C++ API with OpenCASCADE for examples/occt (libgmsh-dev).
 set -euo pipefail
 packages=(cmake g++ gfortran pkg-config valgrind patchelf
-  tetgen libtet1.5-dev libcgal-dev libgmp-dev libmpfr-dev libboost-dev)
+  tetgen libtet1.5-dev libcgal-dev libgmp-dev libmpfr-dev libboost-dev
+  libgmsh-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")

@@ -4,9 +4,12 @@
 # user would, run ctest, check pkg-config, then run the tests under valgrind
 # and, built a second time, under AddressSanitizer + UndefinedBehaviorSanitizer
 # (LeakSanitizer included; the library's own allocations go through malloc, so
-# its leaks are caught too).
+# its leaks are caught too). Then builds and tests examples/occt (gmsh's C++ API
+# with OpenCASCADE; not under valgrind or the sanitizers, which would mostly
+# check OpenCASCADE).
 #
-# Usage: scripts/test_c.sh   (HOCURVE_SKIP_MEMCHECK=1 skips valgrind, HOCURVE_SKIP_ASAN=1 the sanitizers)
+# Usage: scripts/test_c.sh   (HOCURVE_SKIP_MEMCHECK=1 skips valgrind, HOCURVE_SKIP_ASAN=1 the sanitizers,
+#                             HOCURVE_SKIP_OCCT=1 examples/occt)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 work=$(mktemp -d "${TMPDIR:-/tmp}/hocurve-c.XXXXXX")
@@ -41,5 +44,11 @@ if [ "${HOCURVE_SKIP_ASAN:-0}" != 1 ]; then
   cmake --build "$asan" -j "$jobs"
   ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
     ctest --test-dir "$asan" -L api -j "$jobs" --output-on-failure || status=1
+fi
+if [ "${HOCURVE_SKIP_OCCT:-0}" != 1 ]; then
+  occt=$work/build-occt
+  cmake -S "$root/examples/occt" -B "$occt" -DCMAKE_PREFIX_PATH="$prefix"
+  cmake --build "$occt" -j "$jobs"
+  ctest --test-dir "$occt" -j "$jobs" --output-on-failure || status=1
 fi
 exit $status

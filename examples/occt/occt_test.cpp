@@ -1,0 +1,410 @@
+// Tests of the gmsh/OpenCASCADE -> hocurve pipeline.
+//
+//   occt_test write DIR                       write part.step, sphere-torus.step, plate.step
+//   occt_test check MODEL H PMIN PMAX [N]     curve at p = PMIN..PMAX and check (table on stdout);
+//                                             N elements per 2π of curvature (default 12)
+//   occt_test fail MODEL H                    a projector failing on one CAD entity
+//
+// `check`: no invalid cell; every high-order node classified on a CAD face
+// (edge) lies on it to 1e-8 of the model size by gmsh::model::getClosestPoint,
+// nodes on a feature edge on its CAD curve; nodes of facets on planar CAD
+// faces stay in the facet's plane; boundary vertices do not move. It also samples the
+// curved boundary between the nodes and prints the largest distance to CAD.
+// `fail`: the run ends with HOC_ERROR_PROJECTION and the nodes are unchanged.
+#include "occt_models.hpp"
+#include "occt_pipeline.hpp"
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <set>
+
+namespace {
+
+#define CHECK(cond, ...)                                                       \
+  do {                                                                         \
+    if (!(cond)) {                                                             \
+      std::fprintf(stderr, "%s:%d: CHECK(%s) failed: ", __FILE__, __LINE__, #cond); \
+      std::fprintf(stderr, __VA_ARGS__);                                       \
+      std::fputc('\n', stderr);                                                \
+      std::exit(1);                                                            \
+    }                                                                          \
+  } while (0)
+
+using Key = std::array<int64_t, 3>;
+
+// Distances from points (dim coordinates each) to gmsh entity (edim, etag).
+std::vector<double> cad_distance(int dim, int edim, int etag, const std::vector<double> &pts) {
+  const std::size_t n = pts.size() / dim;
+  std::vector<double> xyz(3 * n, 0.0), cl, uv, d(n);
+  for (std::size_t i = 0; i < n; ++i)
+    for (int k = 0; k < dim; ++k) xyz[3 * i + k] = pts[dim * i + k];
+  gmsh::model::getClosestPoint(edim, etag, xyz, cl, uv);
+  for (std::size_t i = 0; i < n; ++i) {
+    double s = 0;
+    for (int k = 0; k < 3; ++k) s += (cl[3 * i + k] - xyz[3 * i + k]) * (cl[3 * i + k] - xyz[3 * i + k]);
+    d[i] = std::sqrt(s);
+  }
+  return d;
+}
+
+// Solve the dense n x n system A x = b (row-major) by Gaussian elimination with pivoting.
+std::vector<double> solve_dense(std::vector<double> a, std::vector<double> b, int n, int nrhs) {
+  for (int c = 0; c < n; ++c) {
+    int piv = c;
+    for (int r = c + 1; r < n; ++r)
+      if (std::fabs(a[r * n + c]) > std::fabs(a[piv * n + c])) piv = r;
+    for (int k = 0; k < n; ++k) std::swap(a[c * n + k], a[piv * n + k]);
+    for (int k = 0; k < nrhs; ++k) std::swap(b[c * nrhs + k], b[piv * nrhs + k]);
+    for (int r = c + 1; r < n; ++r) {
+      double f = a[r * n + c] / a[c * n + c];
+      for (int k = c; k < n; ++k) a[r * n + k] -= f * a[c * n + k];
+      for (int k = 0; k < nrhs; ++k) b[r * nrhs + k] -= f * b[c * nrhs + k];
+    }
+  }
+  for (int c = n - 1; c >= 0; --c)
+    for (int k = 0; k < nrhs; ++k) {
+      double s = b[c * nrhs + k];
+      for (int j = c + 1; j < n; ++j) s -= a[c * n + j] * b[j * nrhs + k];
+      b[c * nrhs + k] = s / a[c * n + c];
+    }
+  return b;
+}
+
+// Monomials s^a t^b, a + b <= p (t ignored, b = 0, for edges).
+std::vector<double> monomials(int p, bool tri, double s, double t) {
+  std::vector<double> m;
+  for (int a = 0; a <= p; ++a)
+    for (int b = 0; b <= (tri ? p - a : 0); ++b) m.push_back(std::pow(s, a) * std::pow(t, b));
+  return m;
+}
+
+struct Row {
+  int p;
+  std::size_t cells, nodes, checked, planar;
+  double node_dist, sample_dist, min_q3;
+  std::size_t invalid;
+  double secs;
+};
+
+// One facet of the curved mesh: its vertices and the cell nodes on it.
+struct Facet {
+  int tag;                      // CAD surface (3D) / curve (2D)
+  int64_t v[3];                 // vertices (v[2] unused in 2D)
+  std::vector<int64_t> nodes;   // every node on it, vertices included
+};
+
+Row curve_and_check(const occt::LinearMesh &lm, int p) {
+  const int dim = lm.dim, nv = dim + 1;
+  const double tol = 1e-8 * lm.size;
+  occt::Projector proj;
+  hocurve::Mesh mesh = occt::make_mesh(lm, proj);
+  mesh.set_threads(2);
+  mesh.set_order(p);
+  const auto cc = mesh.cell_count();
+  const std::size_t n_cells = cc.first, npc = cc.second, n_nodes = mesh.node_count();
+  const std::vector<double> x0 = mesh.nodes();
+  const std::vector<int64_t> cells = mesh.cells(HOC_ORDERING_NATIVE);
+
+  // Facets of the (cap-free) straight mesh: a cell face bounding one cell.
+  std::map<Key, int> facet_tag, feature;
+  std::map<int64_t, std::set<int>> vertex_tags;
+  for (std::size_t f = 0; f < lm.facet_tags.size(); ++f) {
+    const int64_t *v = &lm.facets[dim * f];
+    facet_tag[occt::detail::sorted(v[0], v[1], dim == 3 ? v[2] : -1)] = lm.facet_tags[f];
+    for (int i = 0; i < dim; ++i) vertex_tags[v[i]].insert(lm.facet_tags[f]);
+  }
+  for (std::size_t e = 0; e < lm.edge_tags.size(); ++e)
+    feature[occt::detail::sorted(-1, lm.edges[2 * e], lm.edges[2 * e + 1])] = lm.edge_tags[e];
+  std::map<Key, int> face_count;
+  auto face_key = [&](const int64_t *c, int omit) {
+    int64_t f[3] = {-1, -1, -1};
+    int j = 0;
+    for (int i = 0; i < nv; ++i)
+      if (i != omit) f[j++] = c[i];
+    return occt::detail::sorted(f[0], f[1], f[2]);
+  };
+  for (std::size_t c = 0; c < n_cells; ++c)
+    for (int o = 0; o < nv; ++o) ++face_count[face_key(&cells[c * npc], o)];
+
+  // Barycentric coordinates of node a of cell c in the straight cell.
+  auto bary = [&](const int64_t *c, int64_t node, double *lam) {
+    const double *X[4];
+    for (int i = 0; i < nv; ++i) X[i] = &x0[dim * c[i]];
+    const double *x = &x0[dim * node];
+    if (dim == 2) {
+      double d = (X[1][0] - X[0][0]) * (X[2][1] - X[0][1]) - (X[2][0] - X[0][0]) * (X[1][1] - X[0][1]);
+      lam[1] = ((x[0] - X[0][0]) * (X[2][1] - X[0][1]) - (X[2][0] - X[0][0]) * (x[1] - X[0][1])) / d;
+      lam[2] = ((X[1][0] - X[0][0]) * (x[1] - X[0][1]) - (x[0] - X[0][0]) * (X[1][1] - X[0][1])) / d;
+      lam[0] = 1 - lam[1] - lam[2];
+      return;
+    }
+    auto det3 = [](const double *a, const double *b, const double *c2) {
+      return a[0] * (b[1] * c2[2] - b[2] * c2[1]) - a[1] * (b[0] * c2[2] - b[2] * c2[0]) +
+             a[2] * (b[0] * c2[1] - b[1] * c2[0]);
+    };
+    double e1[3], e2[3], e3[3], r[3];
+    for (int k = 0; k < 3; ++k) {
+      e1[k] = X[1][k] - X[0][k];
+      e2[k] = X[2][k] - X[0][k];
+      e3[k] = X[3][k] - X[0][k];
+      r[k] = x[k] - X[0][k];
+    }
+    double d = det3(e1, e2, e3);
+    lam[1] = det3(r, e2, e3) / d;
+    lam[2] = det3(e1, r, e3) / d;
+    lam[3] = det3(e1, e2, r) / d;
+    lam[0] = 1 - lam[1] - lam[2] - lam[3];
+  };
+
+  // Classify: node -> CAD surface(s) (or 2D curve), node -> CAD curve (3D feature edges).
+  std::vector<Facet> facets;
+  std::map<int64_t, std::set<int>> on_face;
+  std::map<int64_t, int> on_curve;
+  std::size_t unclassified_facets = 0;
+  for (std::size_t c = 0; c < n_cells; ++c) {
+    const int64_t *cell = &cells[c * npc];
+    for (int o = 0; o < nv; ++o) {
+      Key k = face_key(cell, o);
+      if (face_count[k] != 1) continue;
+      int tag = -1;
+      auto it = facet_tag.find(k);
+      if (it != facet_tag.end()) tag = it->second;
+      else {  // a face made by removing a boundary cap: on a surface all its vertices are on
+        std::set<int> common = vertex_tags[k[0]];
+        for (int i = 1; i < dim; ++i) {
+          std::set<int> next;
+          for (int t : vertex_tags[k[i]])
+            if (common.count(t)) next.insert(t);
+          common = next;
+        }
+        if (common.size() == 1) tag = *common.begin();
+      }
+      if (tag < 0) {
+        ++unclassified_facets;
+        continue;
+      }
+      Facet f{tag, {-1, -1, -1}, {}};
+      int j = 0;
+      for (int i = 0; i < nv; ++i)
+        if (i != o) f.v[j++] = cell[i];
+      for (std::size_t a = 0; a < npc; ++a) {
+        double lam[4];
+        bary(cell, cell[a], lam);
+        if (std::fabs(lam[o]) > 1e-9) continue;
+        f.nodes.push_back(cell[a]);
+        if (a < (std::size_t)nv) continue;  // a vertex
+        on_face[cell[a]].insert(tag);
+        if (dim == 3)  // on an edge of the face: lam of one more vertex vanishes
+          for (int i = 0; i < 4; ++i)
+            if (i != o && std::fabs(lam[i]) < 1e-9) {
+              int64_t e[2], m = 0;
+              for (int l = 0; l < 4; ++l)
+                if (l != o && l != i) e[m++] = cell[l];
+              auto fe = feature.find(occt::detail::sorted(-1, e[0], e[1]));
+              if (fe != feature.end()) on_curve[cell[a]] = fe->second;
+            }
+      }
+      facets.push_back(f);
+    }
+  }
+  CHECK(unclassified_facets == 0, "%zu boundary faces not classified", unclassified_facets);
+
+  auto t0 = std::chrono::steady_clock::now();
+  mesh.run_increments(1);
+  double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  CHECK(proj.calls > 0, "the projector was never called");
+  const HocQuality q = mesh.quality();
+  CHECK(q.n_invalid == 0, "p = %d: %zu invalid cells (min Q3 %g)", p, q.n_invalid, q.min_q3);
+  const std::vector<double> x = mesh.nodes();
+  for (auto &vt : vertex_tags)
+    for (int k = 0; k < dim; ++k)
+      CHECK(x[dim * vt.first + k] == x0[dim * vt.first + k], "boundary vertex %lld moved", (long long)vt.first);
+
+  // Nodes on CAD curves (3D feature edges), then on CAD faces (2D: boundary curves).
+  double node_dist = 0;
+  std::size_t checked = 0;
+  std::map<std::pair<int, int>, std::vector<int64_t>> by_entity;
+  for (auto &nc : on_curve) by_entity[{1, nc.second}].push_back(nc.first);
+  for (auto &nf : on_face)
+    if (!on_curve.count(nf.first))
+      for (int t : nf.second) by_entity[{dim - 1, t}].push_back(nf.first);
+  for (auto &e : by_entity) {
+    std::vector<double> pts;
+    for (int64_t n : e.second)
+      for (int k = 0; k < dim; ++k) pts.push_back(x[dim * n + k]);
+    std::vector<double> d = cad_distance(dim, e.first.first, e.first.second, pts);
+    for (std::size_t i = 0; i < d.size(); ++i) {
+      CHECK(d[i] <= tol, "p = %d: node %lld is %.3g from CAD entity (%d, %d) (tolerance %.3g)", p,
+            (long long)e.second[i], d[i], e.first.first, e.first.second, tol);
+      node_dist = std::max(node_dist, d[i]);
+      ++checked;
+    }
+  }
+  CHECK(checked > 0, "no node was checked");
+
+  // Planar CAD faces: every node of their facets stays in the facet's plane.
+  std::size_t planar = 0;
+  if (dim == 3)
+    for (const Facet &f : facets) {
+      std::string type;
+      gmsh::model::getType(2, f.tag, type);
+      if (type != "Plane") continue;
+      const double *a = &x0[3 * f.v[0]], *b = &x0[3 * f.v[1]], *c = &x0[3 * f.v[2]];
+      double u[3], w[3], n[3];
+      for (int k = 0; k < 3; ++k) u[k] = b[k] - a[k], w[k] = c[k] - a[k];
+      n[0] = u[1] * w[2] - u[2] * w[1], n[1] = u[2] * w[0] - u[0] * w[2], n[2] = u[0] * w[1] - u[1] * w[0];
+      double nn = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+      for (int64_t node : f.nodes) {
+        double s = 0;
+        for (int k = 0; k < 3; ++k) s += (x[3 * node + k] - a[k]) * n[k] / nn;
+        CHECK(std::fabs(s) <= tol, "p = %d: node %lld left the plane of CAD face %d by %.3g", p,
+              (long long)node, f.tag, std::fabs(s));
+        ++planar;
+      }
+    }
+
+  // The curved facets between the nodes: interpolate each facet's nodes (their
+  // reference coordinates from the straight facet) and sample on a lattice of order 2p + 1.
+  double sample_dist = 0;
+  std::map<int, std::vector<double>> samples;
+  const bool tri = dim == 3;
+  for (const Facet &f : facets) {
+    const int n = (int)f.nodes.size();
+    std::vector<double> vdm, rhs;
+    for (int64_t node : f.nodes) {
+      // Reference coordinates: (s, t) of the node in the straight facet.
+      const double *a = &x0[dim * f.v[0]], *b = &x0[dim * f.v[1]], *xn = &x0[dim * node];
+      double s, t = 0;
+      if (!tri) {
+        double l2 = 0, dot = 0;
+        for (int k = 0; k < dim; ++k) l2 += (b[k] - a[k]) * (b[k] - a[k]), dot += (xn[k] - a[k]) * (b[k] - a[k]);
+        s = dot / l2;
+      } else {
+        const double *c = &x0[3 * f.v[2]];
+        double u[3], w[3], r[3];
+        for (int k = 0; k < 3; ++k) u[k] = b[k] - a[k], w[k] = c[k] - a[k], r[k] = xn[k] - a[k];
+        double uu = 0, uw = 0, ww = 0, ru = 0, rw = 0;
+        for (int k = 0; k < 3; ++k) uu += u[k] * u[k], uw += u[k] * w[k], ww += w[k] * w[k], ru += r[k] * u[k], rw += r[k] * w[k];
+        double det = uu * ww - uw * uw;
+        s = (ru * ww - rw * uw) / det;
+        t = (rw * uu - ru * uw) / det;
+      }
+      std::vector<double> m = monomials(p, tri, s, t);
+      CHECK((int)m.size() == n, "facet has %d nodes, expected %zu", n, m.size());
+      vdm.insert(vdm.end(), m.begin(), m.end());
+      for (int k = 0; k < dim; ++k) rhs.push_back(x[dim * node + k]);
+    }
+    std::vector<double> coef = solve_dense(vdm, rhs, n, dim);
+    const int ns = 2 * p + 1;
+    for (int i = 0; i <= ns; ++i)
+      for (int j = 0; j <= (tri ? ns - i : 0); ++j) {
+        std::vector<double> m = monomials(p, tri, double(i) / ns, double(j) / ns);
+        for (int k = 0; k < dim; ++k) {
+          double v = 0;
+          for (int l = 0; l < n; ++l) v += m[l] * coef[l * dim + k];
+          samples[f.tag].push_back(v);
+        }
+      }
+  }
+  for (auto &s : samples) {
+    double worst = 0;
+    for (double d : cad_distance(dim, dim - 1, s.first, s.second)) worst = std::max(worst, d);
+    if (std::getenv("OCCT_DEBUG")) {
+      std::string type;
+      gmsh::model::getType(dim - 1, s.first, type);
+      std::fprintf(stderr, "  p=%d entity %d (%s): sampled %.3e\n", p, s.first, type.c_str(), worst);
+    }
+    sample_dist = std::max(sample_dist, worst);
+  }
+
+  return Row{p, n_cells, n_nodes, checked, planar, node_dist, sample_dist, q.min_q3, q.n_invalid, secs};
+}
+
+occt::LinearMesh load(const std::string &model, double h, int per_2pi = 12) {
+  occt::import_model(model);
+  const int dim = occt::model_dim();
+  occt::mesh_linear(dim, h, per_2pi);
+  return occt::collect(dim);
+}
+
+int check(const std::string &model, double h, int pmin, int pmax, int per_2pi) {
+  occt::LinearMesh lm = load(model, h, per_2pi);
+  std::printf("%s: dim %d, %zu vertices, %zu cells, %zu boundary facets, %zu feature edges, size %.4g\n",
+              model.c_str(), lm.dim, lm.coords.size() / lm.dim, lm.cells.size() / (lm.dim + 1),
+              lm.facet_tags.size(), lm.edge_tags.size(), lm.size);
+  std::printf("%3s %7s %8s %8s %8s %12s %14s %8s %8s %8s\n", "p", "cells", "nodes", "checked", "planar",
+              "node->CAD", "between->CAD", "min Q3", "invalid", "seconds");
+  for (int p = pmin; p <= pmax; ++p) {
+    Row r = curve_and_check(lm, p);
+    std::printf("%3d %7zu %8zu %8zu %8zu %12.3e %14.3e %8.4f %8zu %8.2f\n", r.p, r.cells, r.nodes, r.checked,
+                r.planar, r.node_dist, r.sample_dist, r.min_q3, r.invalid, r.secs);
+    std::fflush(stdout);
+  }
+  return 0;
+}
+
+int fail(const std::string &model, double h) {
+  occt::LinearMesh lm = load(model, h);
+  // Fail on the first curved CAD entity that has facets.
+  int tag = -1;
+  for (int t : lm.facet_tags) {
+    std::string type;
+    gmsh::model::getType(lm.dim - 1, t, type);
+    if (type != "Plane" && type != "Line") {
+      tag = t;
+      break;
+    }
+  }
+  CHECK(tag >= 0, "no curved entity");
+  occt::Projector proj;
+  proj.fail_dim = lm.dim - 1;
+  proj.fail_tag = tag;
+  hocurve::Mesh mesh = occt::make_mesh(lm, proj);
+  mesh.set_order(3);
+  const std::vector<double> before = mesh.nodes();
+  HocStatus st = hoc_mesh_run_increments(mesh.get(), 1);
+  CHECK(st == HOC_ERROR_PROJECTION, "status %d (%s), expected HOC_ERROR_PROJECTION", st, hoc_status_string(st));
+  const char *m = hoc_mesh_last_error(mesh.get());
+  const std::string msg = m ? m : "";  // valid only until the next call on the handle
+  const std::vector<double> after = mesh.nodes();
+  CHECK(after == before, "the nodes changed after a failed run");
+  std::printf("projector failing on entity (%d, %d): %s: %s; nodes unchanged\n", lm.dim - 1, tag,
+              hoc_status_string(st), msg.c_str());
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char **argv) {
+  if (argc < 3) {
+    std::fprintf(stderr, "usage: occt_test write DIR | check MODEL H PMIN PMAX [PER_2PI] | fail MODEL H\n");
+    return 2;
+  }
+  gmsh::initialize();
+  gmsh::option::setNumber("General.Terminal", 0);
+  int rc = 2;
+  try {
+    std::string mode = argv[1];
+    if (mode == "write") {
+      for (const char *name : {"part", "sphere-torus", "plate"})
+        occt::write_model(name, std::string(argv[2]) + "/" + name + ".step");
+      rc = 0;
+    } else if (mode == "check" && (argc == 6 || argc == 7)) {
+      rc = check(argv[2], std::atof(argv[3]), std::atoi(argv[4]), std::atoi(argv[5]), argc == 7 ? std::atoi(argv[6]) : 12);
+    } else if (mode == "fail" && argc == 4) {
+      rc = fail(argv[2], std::atof(argv[3]));
+    }
+  } catch (const std::exception &e) {
+    std::fprintf(stderr, "occt_test: %s\n", e.what());
+    rc = 1;
+  } catch (const std::string &s) {  // gmsh's API throws its error message
+    std::fprintf(stderr, "occt_test: gmsh: %s\n", s.c_str());
+    rc = 1;
+  } catch (...) {
+    std::fprintf(stderr, "occt_test: gmsh error\n");
+    rc = 1;
+  }
+  gmsh::finalize();
+  return rc;
+}
