@@ -293,8 +293,13 @@ pub fn curve(
     let linear_iso = matches!(opts.formulation, Formulation::Linear | Formulation::Ile)
         && !opts.material.is_transversely_isotropic();
     let solved = if linear_iso {
-        // Every isotropic model is calibrated so that c(F = I) = c_lin: the fast kernel.
-        let kernel = LinearElasticKernel { cache: cache.clone(), material };
+        // Every isotropic model is calibrated so that c(F = I) = c_lin: the fast
+        // kernel, with a rule of degree 2p − 2, exact on straight-sided cells
+        // (∇N_a·∇N_b has degree 2p − 2 there), for half the points of 2p at
+        // p = 4 in 3D (64 against 125). Curved cells are integrated
+        // approximately by either rule.
+        let rule = simplex_rule(topo.simplex, (2 * opts.order).saturating_sub(2).max(1));
+        let kernel = LinearElasticKernel { cache: ElementCache::new(&basis, &rule), material };
         solve_increments(&mut mesh, &kernel, &ubar, stepping, &mut timings, &mut tick)?
     } else {
         let kernel = MaterialKernel::new(&mesh, &straight, &cache, model.as_ref(), mode, &fibres);

@@ -181,6 +181,73 @@ pub trait ElementKernel: Sync {
     ) -> std::result::Result<(), f64>;
 }
 
+/// Add one element's matrix `ke` (and right-hand side −`re` − K_fd u_d) into
+/// the global lower triangle and `rhs`. One pattern search per pair of free
+/// nodes: within the pair's 3×3 (2×2) block the positions follow from the
+/// layout of [`DofMap::pattern`] (column (n, j) lists node n's components
+/// j.. then each later node's components in order, so the block of node m > n
+/// sits j places earlier in column (n, j) than in column (n, 0)).
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn scatter(
+    cell: &[usize],
+    dim: usize,
+    dofs: &DofMap,
+    pattern: &SymmetricCsc,
+    ke: &[f64],
+    re: Option<&[f64]>,
+    prescribed: &[f64],
+    values: &[AtomicU64],
+    rhs: &[AtomicU64],
+) {
+    let ndof_e = cell.len() * dim;
+    for (ra, &na) in cell.iter().enumerate() {
+        let r0 = dofs.free[na * dim];
+        if r0 == usize::MAX {
+            continue;
+        }
+        let mut b = [0.0; 3];
+        if let Some(re) = re {
+            for i in 0..dim {
+                b[i] = -re[ra * dim + i];
+            }
+        }
+        for (cb, &nb) in cell.iter().enumerate() {
+            let s0 = dofs.free[nb * dim];
+            if s0 == usize::MAX {
+                for i in 0..dim {
+                    let row = &ke[(ra * dim + i) * ndof_e + cb * dim..][..dim];
+                    for j in 0..dim {
+                        b[i] -= row[j] * prescribed[nb * dim + j];
+                    }
+                }
+                continue;
+            }
+            if na < nb {
+                continue;
+            }
+            // Offset of row (na, 0) within column (nb, 0).
+            let offset = if na == nb {
+                0
+            } else {
+                pattern.position(r0, s0).expect("pattern covers every cell coupling") - pattern.col_ptr[s0]
+            };
+            for j in 0..dim {
+                let start = pattern.col_ptr[s0 + j] + offset - j;
+                for i in if na == nb { j..dim } else { 0..dim } {
+                    debug_assert_eq!(pattern.row_idx[start + i], r0 + i);
+                    add(&values[start + i], ke[(ra * dim + i) * ndof_e + cb * dim + j]);
+                }
+            }
+        }
+        for (i, &bi) in b[..dim].iter().enumerate() {
+            if bi != 0.0 {
+                add(&rhs[r0 + i], bi);
+            }
+        }
+    }
+}
+
 /// Assemble K_ff (values on `pattern`) and the right-hand side
 /// b_f = −K_fd u_d − R_f on the geometry `coords`, where R is the internal
 /// force when `residual` is set (IIL, CIL, Newton) and zero otherwise (ILE).
@@ -215,32 +282,7 @@ pub fn assemble<K: ElementKernel>(
                 kernel
                     .compute(c, xe, ke, if residual { Some(&mut re[..]) } else { None }, ws)
                     .map_err(|q| Error::InvalidElement(format!("cell {c} has a non-positive Jacobian ({q:.3e})")))?;
-                for (ra, &na) in cell.iter().enumerate() {
-                    for i in 0..dim {
-                        let r = dofs.free[na * dim + i];
-                        if r == usize::MAX {
-                            continue;
-                        }
-                        let row = &ke[(ra * dim + i) * ndof_e..(ra * dim + i + 1) * ndof_e];
-                        let mut b = if residual { -re[ra * dim + i] } else { 0.0 };
-                        for (cb, &nb) in cell.iter().enumerate() {
-                            for j in 0..dim {
-                                let dof = nb * dim + j;
-                                let s = dofs.free[dof];
-                                let k = row[cb * dim + j];
-                                if s == usize::MAX {
-                                    b -= k * prescribed[dof];
-                                } else if r >= s {
-                                    let pos = pattern.position(r, s).expect("pattern covers every cell coupling");
-                                    add(&values[pos], k);
-                                }
-                            }
-                        }
-                        if b != 0.0 {
-                            add(&rhs[r], b);
-                        }
-                    }
-                }
+                scatter(cell, dim, dofs, pattern, ke, residual.then_some(&re[..]), prescribed, &values, &rhs);
                 Ok(())
             },
         )?;
