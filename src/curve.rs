@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use crate::assembly::{
-    assemble, color_cells, multigrid_levels, DofMap, ElementKernel, LinearElasticKernel, MaterialKernel, TangentMode,
+    assemble, multigrid_levels, AssemblyPlan, DofMap, ElementKernel, LinearElasticKernel, MaterialKernel, TangentMode,
 };
 use crate::geometry::Projector;
 use crate::mapping::ElementCache;
@@ -421,7 +421,7 @@ pub fn solve_increments<K: ElementKernel>(
     }
     let t = Instant::now();
     let pattern = dofs.pattern(mesh);
-    let colors = color_cells(mesh);
+    let plan = AssemblyPlan::new(mesh, &dofs, &pattern);
     let mut solver = make_solver(stepping.solver.clone(), mesh, &dofs, &pattern)?;
     out.linear_solver = solver.name();
     timings.setup += t.elapsed().as_secs_f64();
@@ -440,7 +440,7 @@ pub fn solve_increments<K: ElementKernel>(
         };
         let t = Instant::now();
         let (values, rhs) =
-            assemble(mesh, &mesh.coords, &dofs, &pattern, &colors, kernel, &step, residual).map_err(context)?;
+            assemble(mesh, &mesh.coords, &dofs, &pattern, &plan, kernel, &step, residual).map_err(context)?;
         timings.assembly += t.elapsed().as_secs_f64();
         let r0 = euclid(&rhs).max(f64::MIN_POSITIVE);
         let t = Instant::now();
@@ -456,7 +456,7 @@ pub fn solve_increments<K: ElementKernel>(
         for _ in 0..max_iterations {
             let t = Instant::now();
             let (values, rhs) =
-                assemble(mesh, &mesh.coords, &dofs, &pattern, &colors, kernel, &zero, true).map_err(context)?;
+                assemble(mesh, &mesh.coords, &dofs, &pattern, &plan, kernel, &zero, true).map_err(context)?;
             timings.assembly += t.elapsed().as_secs_f64();
             let ratio = euclid(&rhs) / r0;
             hist.push(ratio);

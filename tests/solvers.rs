@@ -2,7 +2,7 @@
 //! preconditioner gives the direct solver's meshes, its coarse operators are
 //! the Galerkin products, and it beats Jacobi-preconditioned CG.
 
-use hocurve::assembly::{assemble, color_cells, multigrid_levels, DofMap, LinearElasticKernel};
+use hocurve::assembly::{assemble, multigrid_levels, AssemblyPlan, DofMap, LinearElasticKernel};
 use hocurve::cases::{self, Case};
 use hocurve::curve::{curve, CurveOptions, CurvedMesh, Formulation};
 use hocurve::mapping::ElementCache;
@@ -103,7 +103,7 @@ fn system(p: usize) -> (HighOrderMesh, DofMap, SymmetricCsc, Vec<f64>, Vec<f64>)
     let kernel = LinearElasticKernel { cache, material: LinearElastic::try_from_young_poisson(1.0, 0.45).unwrap() };
     let prescribed: Vec<f64> = (0..mesh.coords.len()).map(|i| 0.01 * (i as f64 * 0.1).sin()).collect();
     let (values, rhs) =
-        assemble(&mesh, &mesh.coords, &dofs, &pattern, &color_cells(&mesh), &kernel, &prescribed, false).unwrap();
+        assemble(&mesh, &mesh.coords, &dofs, &pattern, &AssemblyPlan::new(&mesh, &dofs, &pattern), &kernel, &prescribed, false).unwrap();
     (mesh, dofs, pattern, values, rhs)
 }
 

@@ -185,7 +185,7 @@ impl Chebyshev {
 
     /// [`Self::try_new`] with the power iteration started from the dominant
     /// vector of a previous, similar matrix ([`Self::power_vector`]): then
-    /// `power_iterations / 3` steps (at least 2) suffice. `op` applies the
+    /// `power_iterations / 6` steps (at least 2) suffice. `op` applies the
     /// matrix (`pattern`, `values`) or an approximation of it (single precision).
     pub fn try_new_from(
         op: &dyn Operator,
@@ -197,7 +197,7 @@ impl Chebyshev {
     ) -> Result<Chebyshev> {
         let jacobi = BlockJacobi::try_new(pattern, values, block)?;
         let n = pattern.n;
-        let steps = if start.is_some() { (params.power_iterations / 3).max(2) } else { params.power_iterations.max(1) };
+        let steps = if start.is_some() { (params.power_iterations / 6).max(2) } else { params.power_iterations.max(1) };
         let mut v = start
             .filter(|v| v.len() == n)
             .unwrap_or_else(|| (0..n).map(|i| 1.0 + 0.5 * ((i as f64) * 1.618).sin()).collect());
