@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdint>
 #include <exception>
+#include <initializer_list>
 #include <map>
 #include <memory>
 #include <stdexcept>
@@ -183,6 +184,36 @@ inline double dist3(const double *a, const double *b) {
 inline double unwrap(double x, double near, double period) {
   return period > 0 ? x - period * std::round((x - near) / period) : x;
 }
+// Items (edges, facets) bucketed on a uniform grid by their bounding boxes, so
+// that locating a point costs a few candidates instead of a scan of the entity.
+class Buckets {
+ public:
+  using Box = std::array<double, 6>;  // lo xyz, hi xyz
+  void build(const std::vector<Box> &boxes, double eps) {
+    double sum = 0;
+    for (const Box &b : boxes) sum += std::max({b[3] - b[0], b[4] - b[1], b[5] - b[2]});
+    h_ = boxes.empty() ? 1.0 : std::max(sum / boxes.size(), 1e3 * eps + 1e-300);
+    for (std::size_t i = 0; i < boxes.size(); ++i) {
+      std::array<int64_t, 3> lo, hi;
+      for (int k = 0; k < 3; ++k) lo[k] = cell(boxes[i][k] - eps), hi[k] = cell(boxes[i][k + 3] + eps);
+      for (int64_t a = lo[0]; a <= hi[0]; ++a)
+        for (int64_t b = lo[1]; b <= hi[1]; ++b)
+          for (int64_t c = lo[2]; c <= hi[2]; ++c) cells_[{a, b, c}].push_back(i);
+    }
+  }
+  // Candidates whose (enlarged) box may hold x; empty if none.
+  const std::vector<std::size_t> &query(const double *x) const {
+    static const std::vector<std::size_t> none;
+    auto it = cells_.find({cell(x[0]), cell(x[1]), cell(x[2])});
+    return it == cells_.end() ? none : it->second;
+  }
+
+ private:
+  int64_t cell(double v) const { return static_cast<int64_t>(std::floor(v / h_)); }
+  double h_ = 1.0;
+  std::map<std::array<int64_t, 3>, std::vector<std::size_t>> cells_;
+};
+
 // x wrapped into [lo, lo + period) (period <= 0: x).
 inline double wrap(double x, double lo, double period) {
   return period > 0 ? x - period * std::floor((x - lo) / period) : x;
@@ -224,6 +255,17 @@ class Placer {
       for (std::size_t f = 0; f < m.facet_tags.size(); ++f)
         surface_facets_[m.facet_tags[f]].push_back({m.facets[3 * f], m.facets[3 * f + 1], m.facets[3 * f + 2]});
     }
+    const double eps = 1e-9 * m.size;
+    for (auto &c : curve_edges_) {
+      std::vector<detail::Buckets::Box> boxes;
+      for (auto &e : c.second) boxes.push_back(box({e.first, e.second}));
+      curve_buckets_[c.first].build(boxes, eps);
+    }
+    for (auto &f : surface_facets_) {
+      std::vector<detail::Buckets::Box> boxes;
+      for (auto &t : f.second) boxes.push_back(box({t[0], t[1], t[2]}));
+      surface_buckets_[f.first].build(boxes, eps);
+    }
   }
 
   std::size_t fallbacks = 0;  // nodes placed by closest point for want of a parametric placement
@@ -253,6 +295,15 @@ class Placer {
   };
   using EdgeKey = std::pair<int64_t, int64_t>;
   static EdgeKey key(int64_t a, int64_t b) { return a < b ? EdgeKey{a, b} : EdgeKey{b, a}; }
+
+  detail::Buckets::Box box(std::initializer_list<int64_t> vs) const {
+    detail::Buckets::Box b{HUGE_VAL, HUGE_VAL, HUGE_VAL, -HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+    for (int64_t v : vs) {
+      auto x = vertex(v);
+      for (int k = 0; k < 3; ++k) b[k] = std::min(b[k], x[k]), b[k + 3] = std::max(b[k + 3], x[k]);
+    }
+    return b;
+  }
 
   std::array<double, 3> vertex(int64_t v) const {
     std::array<double, 3> p{0, 0, 0};
@@ -313,7 +364,8 @@ class Placer {
     if (it == curve_edges_.end()) return false;
     const std::pair<int64_t, int64_t> *best = nullptr;
     double best_d = 0, best_t = 0;
-    for (auto &e : it->second) {
+    for (std::size_t i : curve_buckets_.at(tag).query(x)) {
+      auto &e = it->second[i];
       auto a = vertex(e.first), b = vertex(e.second);
       double ab2 = 0, t = 0;
       for (int k = 0; k < 3; ++k) ab2 += (b[k] - a[k]) * (b[k] - a[k]), t += (x[k] - a[k]) * (b[k] - a[k]);
@@ -338,7 +390,8 @@ class Placer {
     if (it == surface_facets_.end()) return false;
     const std::array<int64_t, 3> *best = nullptr;
     double lam[3] = {0, 0, 0}, best_score = -1;
-    for (auto &f : it->second) {
+    for (std::size_t i : surface_buckets_.at(tag).query(x)) {
+      auto &f = it->second[i];
       auto a = vertex(f[0]), b = vertex(f[1]), c = vertex(f[2]);
       double u[3], w[3], r[3];
       for (int k = 0; k < 3; ++k) u[k] = b[k] - a[k], w[k] = c[k] - a[k], r[k] = x[k] - a[k];
@@ -396,6 +449,7 @@ class Placer {
   const LinearMesh &m_;
   std::map<int, std::vector<std::pair<int64_t, int64_t>>> curve_edges_;
   std::map<int, std::vector<std::array<int64_t, 3>>> surface_facets_;
+  std::map<int, detail::Buckets> curve_buckets_, surface_buckets_;
   std::map<EdgeKey, int> feature_;
   std::map<std::pair<int, int>, Param> params_;
   std::map<std::tuple<int, int, int64_t>, std::array<double, 2>> vparam_;
