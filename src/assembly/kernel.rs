@@ -22,6 +22,7 @@ pub struct KernelWorkspace {
     a: Mat<f64>,
     aw: Mat<f64>,
     m: Mat<f64>,
+    lap: Vec<f64>,
 }
 
 impl super::ElementKernel for LinearElasticKernel {
@@ -53,6 +54,7 @@ impl LinearElasticKernel {
             a: Mat::zeros(nq, n * d),
             aw: Mat::zeros(nq, n * d),
             m: Mat::zeros(n * d, n * d),
+            lap: vec![0.0; n],
         }
     }
 
@@ -81,22 +83,28 @@ impl LinearElasticKernel {
         }
         // M = Awᵀ A: M[(i n + a), (j n + b)] = ∫ ∂_i N_a ∂_j N_b.
         matmul(ws.m.as_mut(), Accum::Replace, ws.aw.as_ref().transpose(), ws.a.as_ref(), 1.0, Par::Seq);
+        // K is symmetric, so the entry of (a i)(b j) is written at row (b j),
+        // column (a i): every inner loop then runs down a column of M.
         let (lam, mu) = (self.material.lambda, self.material.mu);
         let nd = n * dim;
-        let m = &ws.m;
-        for a in 0..n {
-            for b in 0..n {
-                let mut lap = 0.0;
-                for k in 0..dim {
-                    lap += m[(k * n + a, k * n + b)];
+        let (m, lap) = (&ws.m, &mut ws.lap);
+        for b in 0..n {
+            // lap[a] = ∫ ∇N_a·∇N_b
+            lap.fill(0.0);
+            for k in 0..dim {
+                for (l, v) in lap.iter_mut().zip(&m.col_as_slice(k * n + b)[k * n..][..n]) {
+                    *l += v;
                 }
+            }
+            for j in 0..dim {
+                let row = &mut ke[(b * dim + j) * nd..][..nd];
+                let cj = m.col_as_slice(j * n + b);
                 for i in 0..dim {
-                    for j in 0..dim {
-                        let mut v = lam * m[(i * n + a, j * n + b)] + mu * m[(j * n + a, i * n + b)];
-                        if i == j {
-                            v += mu * lap;
-                        }
-                        ke[(a * dim + i) * nd + b * dim + j] = v;
+                    let ci = m.col_as_slice(i * n + b);
+                    let (lam_part, mu_part) = (&cj[i * n..][..n], &ci[j * n..][..n]);
+                    let diag = if i == j { mu } else { 0.0 };
+                    for a in 0..n {
+                        row[a * dim + i] = lam * lam_part[a] + mu * mu_part[a] + diag * lap[a];
                     }
                 }
             }

@@ -22,14 +22,14 @@ pub use certified::{CertifiedJacobian, JacobianBernstein, Verdict};
 use rayon::prelude::*;
 
 use crate::mapping::{self, ElementCache};
-use crate::quadrature::simplex_rule;
+use crate::quadrature::collapsed_rule;
 use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
 
 /// Tabulation of `basis` at the quality sample points: the quadrature rule
 /// exact to degree 2p and the equispaced lattice of order 2p.
 pub fn sampling_cache(basis: &LagrangeBasis) -> ElementCache {
     let p = basis.order();
-    let mut points = simplex_rule(basis.simplex(), 2 * p).points;
+    let mut points = collapsed_rule(basis.simplex(), 2 * p).points;
     points.extend(NodeSet::new(basis.simplex(), 2 * p, NodeSpacing::Equispaced).coords);
     ElementCache::at_points(basis, &points)
 }
