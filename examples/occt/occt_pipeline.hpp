@@ -225,7 +225,8 @@ inline double wrap(double x, double lo, double period) {
 //  - Parametric: through the CAD parametrisation of the linear edge or facet
 //    the node lies on. A node at fraction t of a mesh edge on a CAD curve goes
 //    to C(u_a + t (u_b - u_a)), u_a, u_b the parameters of the edge's vertices
-//    (on a circle: equal angles, so GLL nodes stay GLL in arc length). A node
+//    (on a circle: equal angles, so GLL nodes stay GLL in arc length; vertex
+//    parameters are refined by Gauss-Newton, see Placer::newton). A node
 //    inside a facet on a CAD surface, with barycentric coordinates λ, goes to
 //    S(Σ λ_k (u,v)_k + Σ_e (λ_i + λ_j) [(u,v)(y_e) − lin_e]) where e = (i, j)
 //    runs over the facet's edges on CAD curves, y_e is the curve point of the
@@ -289,6 +290,47 @@ class Placer {
     for (int k = 0; k < edim; ++k) param[k] = uv.at(k);
   }
 
+  // Gauss-Newton on |E(uv) - x|^2 over the parameters uv of entity (edim, etag),
+  // from the uv given, on the entity's untrimmed parametrisation (no wrapping, so
+  // uv stays in the caller's unwrapped frame). Stops when a step no longer
+  // lowers the distance; returns the final distance |E(uv) - x|. For a point on
+  // the entity, started near it, this converges quadratically, and unlike
+  // getClosestPoint it cannot jump to another part of the entity: gmsh 4.8's
+  // getClosestPoint on a face, for a point 1e-8 outside the face's parameter
+  // range (the curve the face ends on), answers the far side of a torus.
+  static double newton(int edim, int etag, const double *x, double *uv, int iters = 8) {
+    std::vector<double> at(uv, uv + edim), e, d;
+    gmsh::model::getValue(edim, etag, at, e);
+    double dist = detail::dist3(e.data(), x);
+    for (int it = 0; it < iters && dist > 0; ++it) {
+      gmsh::model::getDerivative(edim, etag, at, d);
+      double r[3], a[3] = {0, 0, 0}, b[2] = {0, 0}, step[2] = {0, 0};
+      for (int k = 0; k < 3; ++k) r[k] = x[k] - e[k];
+      for (int i = 0; i < edim; ++i) {
+        for (int k = 0; k < 3; ++k) b[i] += d.at(3 * i + k) * r[k];
+        for (int j = i; j < edim; ++j)
+          for (int k = 0; k < 3; ++k) a[i + j] += d.at(3 * i + k) * d.at(3 * j + k);  // a = [uu, uv, vv]
+      }
+      if (edim == 1) {
+        if (!(a[0] > 0)) break;
+        step[0] = b[0] / a[0];
+      } else {
+        const double det = a[0] * a[2] - a[1] * a[1];
+        if (!(det > 1e-14 * a[0] * a[2])) break;  // singular (a pole): keep what we have
+        step[0] = (a[2] * b[0] - a[1] * b[1]) / det;
+        step[1] = (a[0] * b[1] - a[1] * b[0]) / det;
+      }
+      std::vector<double> next(at), en;
+      for (int i = 0; i < edim; ++i) next[i] += step[i];
+      gmsh::model::getValue(edim, etag, next, en);
+      const double dn = detail::dist3(en.data(), x);
+      if (!(dn < dist)) break;
+      at = next, e = en, dist = dn;
+    }
+    for (int i = 0; i < edim; ++i) uv[i] = at[i];
+    return dist;
+  }
+
  private:
   struct Param {       // parametrisation bounds of an entity
     double lo[2], period[2];  // period 0: not periodic in that direction
@@ -345,6 +387,9 @@ class Placer {
     auto x = vertex(v);
     double y[3], uv[2] = {0, 0};
     closest(edim, etag, x.data(), y, uv);
+    // getClosestPoint's parameter is only good to ~1e-8 (the end vertex of a
+    // torus seam came back 1.8e-8 off, its parameter outside the curve's range).
+    newton(edim, etag, x.data(), uv);
     return vparam_[k] = {uv[0], uv[1]};
   }
 
@@ -426,12 +471,19 @@ class Placer {
       if (fe == feature_.end() || s < 1e-12) continue;
       const double t = lam[j] / s;
       auto ye = curve_point(fe->second, f[i], f[j], t);
-      double z[3], uve[2];
-      closest(2, tag, ye.data(), z, uve);
-      for (int k = 0; k < 2; ++k) {
-        const double lin = (1 - t) * uv[i][k] + t * uv[j][k];
-        target[k] += s * (detail::unwrap(uve[k], lin, p.period[k]) - lin);
+      // (u,v) of the curve point: Gauss-Newton from the edge's linear (u,v),
+      // already unwrapped; closest point (unwrapped) only if that does not
+      // come near (the curve lies on the face to the CAD's tolerance, here
+      // ~1e-13, so 1e-3 of the edge only rules out a wrong local minimum).
+      double lin[2], uve[2];
+      for (int k = 0; k < 2; ++k) uve[k] = lin[k] = (1 - t) * uv[i][k] + t * uv[j][k];
+      auto va = vertex(f[i]), vb = vertex(f[j]);
+      if (!(newton(2, tag, ye.data(), uve) <= 1e-3 * detail::dist3(va.data(), vb.data()))) {
+        double z[3];
+        closest(2, tag, ye.data(), z, uve);
+        for (int k = 0; k < 2; ++k) uve[k] = detail::unwrap(uve[k], lin[k], p.period[k]);
       }
+      for (int k = 0; k < 2; ++k) target[k] += s * (uve[k] - lin[k]);
     }
     for (int k = 0; k < 2; ++k) target[k] = detail::wrap(target[k], p.lo[k], p.period[k]);
     std::vector<double> xyz;
