@@ -86,14 +86,14 @@ pub enum SolverChoice {
 }
 
 /// Largest 3D system that [`SolverChoice::Auto`] solves directly. Measured
-/// crossover (sphere cavity, one ILE increment, see [`IterativeSolver`]): about
-/// 15k unknowns at p = 2 (at 106k the iterative solve is 6x faster) and about
-/// 100k at p = 4 (equal times, half the memory); above, the direct solver's
-/// time and memory grow much faster. 2D stays direct at every size: its
-/// factorisations are cheap (nested-dissection fill ~ N log N) and the
-/// p-multigrid is weak on stretched boundary-layer cells (63 iterations on
+/// (sphere cavity, one ILE increment, 2026-11-23, other jobs paused): at p = 2
+/// the iterative solve is 2× faster at 17k unknowns and 4.7× at 34k; at p = 4
+/// the direct one is 2.6× faster at 17k and 2× slower at 60k. Above, the
+/// direct solver's time and memory grow much faster. 2D stays direct at every
+/// size: its factorisations are cheap (nested-dissection fill ~ N log N) and
+/// the p-multigrid is weak on stretched boundary-layer cells (63 iterations on
 /// the cylinder case at p = 4); a large-2D comparison was not measured.
-pub const AUTO_DIRECT_MAX_DOFS: usize = 50_000;
+pub const AUTO_DIRECT_MAX_DOFS: usize = 25_000;
 
 impl SolverChoice {
     pub fn name(&self) -> &'static str {
