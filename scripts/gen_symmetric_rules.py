@@ -78,14 +78,21 @@ def table(folder, dim):
 
 
 def emit(name, entries):
-    print(f"/// Index d − 1: the smallest rule exact to degree ≥ d; 4 values per point (x, y, z, w).")
+    """One constant per distinct rule, then the table by degree."""
+    consts = {}
+    for degree, n, source, values in entries:
+        if source not in consts:
+            const = f"{name}_{source.split('-sp')[0].replace('-', '_').upper()}"
+            consts[source] = const
+            print(f"/// {source}: {n} points (x, y, z, w).")
+            print(f"const {const}: &[f64] = &[")
+            for k in range(0, len(values), 4):
+                print("    " + ", ".join(repr(float(v)) for v in values[k:k + 4]) + ",")
+            print("];")
+    print(f"/// Index d − 1: the smallest rule exact to degree ≥ d.")
     print(f"pub(super) const {name}: &[&[f64]] = &[")
     for degree, n, source, values in entries:
-        print(f"    // degree {degree}: {n} points ({source})")
-        print("    &[")
-        for k in range(0, len(values), 4):
-            print("        " + ", ".join(repr(float(v)) for v in values[k:k + 4]) + ",")
-        print("    ],")
+        print(f"    {consts[source]}, // degree {degree}: {n} points")
     print("];")
 
 
