@@ -144,7 +144,7 @@ fn galerkin_coarse_operator_is_the_symmetric_triple_product() {
     let mut in_pattern = vec![false; nc * nc];
     for j in 0..nc {
         for k in cp.col_ptr[j]..cp.col_ptr[j + 1] {
-            let i = cp.row_idx[k];
+            let i = cp.row_idx[k] as usize;
             in_pattern[i * nc + j] = true;
             in_pattern[j * nc + i] = true;
             assert!((ac[k] - dense[i * nc + j]).abs() < 1e-12 * scale, "entry ({i}, {j})");

@@ -57,7 +57,10 @@ impl DofMap {
 
     /// Lower-triangular CSC pattern of K_ff: (r, c) is present when the nodes
     /// of dofs r and c share a cell. Built in O(cells · nodes_per_cell²).
+    /// Panics above 2^32 − 1 unknowns (32-bit row indices; such a mesh would
+    /// need over 100 GB before its matrix).
     pub fn pattern(&self, mesh: &HighOrderMesh) -> SymmetricCsc {
+        assert!(self.n_free < u32::MAX as usize, "{} unknowns: more than 32-bit row indices hold", self.n_free);
         let n_nodes = mesh.n_nodes();
         let npc = mesh.nodes_per_cell();
         // node → cells (CSR)
@@ -103,7 +106,7 @@ impl DofMap {
                 for &m in nb {
                     let d0 = if m == n { c } else { 0 };
                     for d in d0..dim {
-                        row_idx.push(self.free[m * dim + d]);
+                        row_idx.push(self.free[m * dim + d] as u32);
                     }
                 }
                 col_ptr.push(row_idx.len());
@@ -269,7 +272,7 @@ fn scatter(
             for j in 0..dim {
                 let start = pattern.col_ptr[s0 + j] + offset - j;
                 for i in if na == nb { j..dim } else { 0..dim } {
-                    debug_assert_eq!(pattern.row_idx[start + i], r0 + i);
+                    debug_assert_eq!(pattern.row_idx[start + i] as usize, r0 + i);
                     add(&values[start + i], ke[(ra * dim + i) * ndof_e + cb * dim + j]);
                 }
             }

@@ -107,7 +107,7 @@ impl BlockSym32 {
             .map(|j| {
                 let c = j * b;
                 let rows = &pattern.row_idx[pattern.col_ptr[c]..pattern.col_ptr[c + 1]];
-                rows.iter().step_by(b).map(|&r| (r / b) as u32).collect()
+                rows.iter().step_by(b).map(|&r| r / b as u32).collect()
             })
             .collect();
         for (j, nodes) in upper.iter().enumerate() {
@@ -119,7 +119,7 @@ impl BlockSym32 {
                     rows.len() == nodes.len() * b - jj
                         && rows.iter().enumerate().all(|(t, &r)| {
                             let t = t + jj;
-                            r == nodes[t / b] as usize * b + t % b
+                            r as usize == nodes[t / b] as usize * b + t % b
                         })
                 });
             if !ok {
@@ -242,7 +242,7 @@ mod tests {
             }
         }
         let values = (0..row_idx.len()).map(|k| ((k * 7919) % 1000) as f64 / 250.0 - 2.0).collect();
-        (SymmetricCsc { n: nodes * b, col_ptr, row_idx }, values)
+        (SymmetricCsc { n: nodes * b, col_ptr, row_idx: row_idx.into_iter().map(|r| r as u32).collect() }, values)
     }
 
     #[test]

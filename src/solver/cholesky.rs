@@ -14,17 +14,20 @@ use crate::{Error, Result};
 pub struct SparseCholesky {
     symbolic: SymbolicCholesky<usize>,
     par: Par,
+    /// The pattern's row indices widened to faer's index type.
+    row_idx: Vec<usize>,
 }
 
 impl SparseCholesky {
     /// Analyse the pattern (AMD ordering, elimination tree, supernodes).
     pub fn try_analyse(pattern: &SymmetricCsc) -> Result<SparseCholesky> {
-        let sym = SymbolicSparseColMatRef::new_checked(pattern.n, pattern.n, &pattern.col_ptr, None, &pattern.row_idx);
+        let row_idx: Vec<usize> = pattern.row_idx.iter().map(|&r| r as usize).collect();
+        let sym = SymbolicSparseColMatRef::new_checked(pattern.n, pattern.n, &pattern.col_ptr, None, &row_idx);
         let symbolic = factorize_symbolic_cholesky(sym, Side::Lower, Default::default(), Default::default())
             .map_err(|e| Error::Solver(format!("symbolic Cholesky analysis failed: {e:?}")))?;
         // faer 0.24's threaded sparse Cholesky is slower than the sequential one on
         // our matrices (issue 5 measurements), so factor sequentially.
-        Ok(SparseCholesky { symbolic, par: Par::Seq })
+        Ok(SparseCholesky { symbolic, par: Par::Seq, row_idx })
     }
 
     /// Number of nonzeros of the factor L.
@@ -43,7 +46,7 @@ impl SparseCholesky {
     /// with these `values`, for repeated solves with [`Self::try_solve_in_place`].
     /// Fails if A is not positive definite.
     pub fn try_factor(&self, pattern: &SymmetricCsc, values: &[f64]) -> Result<Vec<f64>> {
-        let sym = SymbolicSparseColMatRef::new_checked(pattern.n, pattern.n, &pattern.col_ptr, None, &pattern.row_idx);
+        let sym = SymbolicSparseColMatRef::new_checked(pattern.n, pattern.n, &pattern.col_ptr, None, &self.row_idx);
         let a = SparseColMatRef::new(sym, values);
         let mut l_values = Vec::new();
         l_values
@@ -97,7 +100,7 @@ mod tests {
             }
             col_ptr.push(row_idx.len());
         }
-        (SymmetricCsc { n, col_ptr, row_idx }, vals)
+        (SymmetricCsc { n, col_ptr, row_idx: row_idx.into_iter().map(|r| r as u32).collect() }, vals)
     }
 
     #[test]

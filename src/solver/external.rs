@@ -122,6 +122,7 @@ impl FullCsrPattern {
         let mut count = vec![0usize; n + 1];
         for c in 0..n {
             for &r in &p.row_idx[p.col_ptr[c]..p.col_ptr[c + 1]] {
+                let r = r as usize;
                 count[r + 1] += 1;
                 if r != c {
                     count[c + 1] += 1;
@@ -137,7 +138,7 @@ impl FullCsrPattern {
         let (mut col_idx, mut source) = (vec![0; nnz], vec![0; nnz]);
         for c in 0..n {
             for k in p.col_ptr[c]..p.col_ptr[c + 1] {
-                let r = p.row_idx[k];
+                let r = p.row_idx[k] as usize;
                 col_idx[next[r]] = c;
                 source[next[r]] = k;
                 next[r] += 1;
@@ -212,7 +213,7 @@ mod tests {
 
     /// A 5×5 lower pattern with a missing diagonal entry and a dense last row.
     fn pattern() -> (SymmetricCsc, Vec<f64>) {
-        let cols: [&[usize]; 5] = [&[0, 2, 4], &[1, 4], &[2, 3, 4], &[4], &[4]];
+        let cols: [&[u32]; 5] = [&[0, 2, 4], &[1, 4], &[2, 3, 4], &[4], &[4]];
         let mut p = SymmetricCsc { n: 5, col_ptr: vec![0], row_idx: vec![] };
         for c in cols {
             p.row_idx.extend_from_slice(c);

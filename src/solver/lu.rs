@@ -15,7 +15,7 @@ pub fn try_lu_solve_in_place(pattern: &SymmetricCsc, values: &[f64], rhs: &mut [
     let mut triplets = Vec::with_capacity(2 * values.len());
     for c in 0..pattern.n {
         for k in pattern.col_ptr[c]..pattern.col_ptr[c + 1] {
-            let r = pattern.row_idx[k];
+            let r = pattern.row_idx[k] as usize;
             triplets.push(Triplet::new(r, c, values[k]));
             if r != c {
                 triplets.push(Triplet::new(c, r, values[k]));

@@ -120,8 +120,9 @@ impl SolverChoice {
 pub struct SymmetricCsc {
     pub n: usize,
     pub col_ptr: Vec<usize>,
-    /// Row indices, sorted within each column.
-    pub row_idx: Vec<usize>,
+    /// Row indices, sorted within each column; 32-bit (half the memory of
+    /// usize: 0.7 GB at a million unknowns, p = 4), so n < 2^32.
+    pub row_idx: Vec<u32>,
 }
 
 impl SymmetricCsc {
@@ -134,6 +135,7 @@ impl SymmetricCsc {
     #[inline]
     pub fn position(&self, row: usize, col: usize) -> Option<usize> {
         let (s, e) = (self.col_ptr[col], self.col_ptr[col + 1]);
+        let row = u32::try_from(row).ok()?;
         self.row_idx[s..e].binary_search(&row).ok().map(|k| s + k)
     }
 
@@ -142,7 +144,7 @@ impl SymmetricCsc {
         let mut y = vec![0.0; self.n];
         for c in 0..self.n {
             for k in self.col_ptr[c]..self.col_ptr[c + 1] {
-                let r = self.row_idx[k];
+                let r = self.row_idx[k] as usize;
                 y[r] += values[k] * x[c];
                 if r != c {
                     y[c] += values[k] * x[r];

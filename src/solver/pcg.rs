@@ -48,10 +48,11 @@ impl SymmetricOperator {
                 pattern.nnz()
             )));
         }
-        let upper_col: Vec<u32> = pattern.row_idx.iter().map(|&r| r as u32).collect();
+        let upper_col = pattern.row_idx.clone();
         let mut lower_ptr = vec![0usize; n + 1];
         for c in 0..n {
             for &r in &pattern.row_idx[pattern.col_ptr[c]..pattern.col_ptr[c + 1]] {
+                let r = r as usize;
                 if r != c {
                     lower_ptr[r + 1] += 1;
                 }
@@ -66,7 +67,7 @@ impl SymmetricOperator {
         let mut lower_src = vec![0u32; m];
         for c in 0..n {
             for k in pattern.col_ptr[c]..pattern.col_ptr[c + 1] {
-                let r = pattern.row_idx[k];
+                let r = pattern.row_idx[k] as usize;
                 if r != c {
                     lower_col[fill[r]] = c as u32;
                     lower_src[fill[r]] = k as u32;
@@ -277,7 +278,7 @@ impl BlockJacobi {
             for jc in 0..block {
                 let c = i * block + jc;
                 for k in pattern.col_ptr[c]..pattern.col_ptr[c + 1] {
-                    let r = pattern.row_idx[k];
+                    let r = pattern.row_idx[k] as usize;
                     if r >= (i + 1) * block {
                         break;
                     }
@@ -387,7 +388,7 @@ pub(crate) mod tests {
             }
             col_ptr.push(row_idx.len());
         }
-        (SymmetricCsc { n, col_ptr, row_idx }, vals)
+        (SymmetricCsc { n, col_ptr, row_idx: row_idx.into_iter().map(|r| r as u32).collect() }, vals)
     }
 
     #[test]

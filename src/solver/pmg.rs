@@ -131,7 +131,7 @@ pub fn galerkin_product(
                     }
                 }
                 let rows = &coarse.row_idx[coarse.col_ptr[jc]..coarse.col_ptr[jc + 1]];
-                let out: Vec<f64> = rows.iter().map(|&i| acc[i]).collect();
+                let out: Vec<f64> = rows.iter().map(|&i| acc[i as usize]).collect();
                 // Reset every touched slot (including those outside the pattern).
                 for k in pt.row_ptr[jc]..pt.row_ptr[jc + 1] {
                     for &(i, _) in &w[pt.col[k] as usize] {
