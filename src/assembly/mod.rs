@@ -316,7 +316,18 @@ pub fn assemble<K: ElementKernel>(
                 kernel
                     .compute(c, xe, ke, if residual { Some(&mut re[..]) } else { None }, ws)
                     .map_err(|q| Error::InvalidElement(format!("cell {c} has a non-positive Jacobian ({q:.3e})")))?;
-                scatter(cell, plan.cell_offsets(c), dim, dofs, pattern, ke, residual.then_some(&re[..]), prescribed, &values, &rhs);
+                scatter(
+                    cell,
+                    plan.cell_offsets(c),
+                    dim,
+                    dofs,
+                    pattern,
+                    ke,
+                    residual.then_some(&re[..]),
+                    prescribed,
+                    &values,
+                    &rhs,
+                );
                 Ok(())
             },
         )?;
@@ -374,8 +385,7 @@ mod tests {
         let prescribed: Vec<f64> = (0..mesh.coords.len()).map(|i| (i as f64 * 0.1).sin()).collect();
         let run = |threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            pool.install(|| assemble(&mesh, &mesh.coords, &dofs, &pattern, &plan, &kernel, &prescribed, false))
-                .unwrap()
+            pool.install(|| assemble(&mesh, &mesh.coords, &dofs, &pattern, &plan, &kernel, &prescribed, false)).unwrap()
         };
         let serial = run(1);
         for _ in 0..3 {
