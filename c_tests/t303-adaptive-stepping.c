@@ -3,13 +3,15 @@
  * curved at p = 4 with ILE in one increment, first with adaptive stepping off,
  * then on: the increments taken, the load fractions and the step backs are
  * read back and printed; with adaptive stepping no cell is certified invalid.
- * Also the setter's and getters' argument checks. */
+ * At p = 3 the same mesh keeps 18 tets inverted whatever the step: adaptive
+ * stepping fails at its split limit with HOC_ERROR_INVALID_ELEMENT and the
+ * mesh unchanged. Also the setter's and getters' argument checks. */
 #include "curve_checks.h"
 
-static void run(const FixtureMesh *m, int enabled, HocQuality *q, size_t *taken, size_t *backs) {
+static void run(const FixtureMesh *m, int p, int enabled, HocQuality *q, size_t *taken, size_t *backs) {
   size_t calls = 0;
   HocMesh *mesh = create_fixture_mesh(m, sphere_box_projector, &calls);
-  CHECK_OK(mesh, hoc_mesh_set_order(mesh, 4, HOC_SPACING_OPTIMAL));
+  CHECK_OK(mesh, hoc_mesh_set_order(mesh, p, HOC_SPACING_OPTIMAL));
   CHECK_OK(mesh, hoc_mesh_set_material(mesh, HOC_MATERIAL_LINEAR_ELASTIC, 1.0, 0.45));
   CHECK_OK(mesh, hoc_mesh_set_adaptive_stepping(mesh, enabled, 6));
   CHECK_OK(mesh, hoc_mesh_increment_count(mesh, taken, backs));
@@ -57,16 +59,40 @@ static void run(const FixtureMesh *m, int enabled, HocQuality *q, size_t *taken,
 int main(int argc, char **argv) {
   double max_volume = argc > 1 ? atof(argv[1]) : 8.0;
   int subdivisions = argc > 2 ? atoi(argv[2]) : 0;
+  int p = argc > 3 ? atoi(argv[3]) : 4;
   FixtureMesh m;
   CHECK(fixture_tetgen_sphere_box(subdivisions, 1, max_volume, &m) == 0, "TetGen failed");
   printf("TetGen sphere cavity: %zu vertices, %zu tets, %zu boundary triangles\n", m.n_vertices, m.n_cells,
          m.n_facets);
   HocQuality plain, adaptive;
   size_t taken, backs;
-  run(&m, 0, &plain, &taken, &backs);
-  run(&m, 1, &adaptive, &taken, &backs);
+  run(&m, p, 0, &plain, &taken, &backs);
+  run(&m, p, 1, &adaptive, &taken, &backs);
   CHECK(adaptive.n_certified_invalid == 0 && adaptive.n_invalid == 0, "adaptive stepping left %zu invalid cells",
         adaptive.n_certified_invalid);
+
+  /* The split limit: a clear error, the mesh as before the run. */
+  size_t calls = 0;
+  HocMesh *mesh = create_fixture_mesh(&m, sphere_box_projector, &calls);
+  CHECK_OK(mesh, hoc_mesh_set_order(mesh, 3, HOC_SPACING_OPTIMAL));
+  CHECK_OK(mesh, hoc_mesh_set_adaptive_stepping(mesh, 1, 3));
+  size_t n_nodes = 0;
+  CHECK_OK(mesh, hoc_mesh_node_count(mesh, &n_nodes));
+  double *x0 = (double *)malloc(sizeof(double) * 3 * n_nodes);
+  double *x1 = (double *)malloc(sizeof(double) * 3 * n_nodes);
+  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, n_nodes, x0));
+  HocStatus st = hoc_mesh_run_increments(mesh, 1);
+  const char *msg = hoc_mesh_last_error(mesh);
+  printf("p = 3, max_splits 3: status %d: %s\n", st, msg);
+  CHECK(st == HOC_ERROR_INVALID_ELEMENT, "status %d", st);
+  CHECK(strstr(msg, "limit") != NULL, "the message does not name the limit: %s", msg);
+  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, n_nodes, x1));
+  CHECK(memcmp(x0, x1, sizeof(double) * 3 * n_nodes) == 0, "the failed run changed the mesh");
+  CHECK_OK(mesh, hoc_mesh_increment_count(mesh, &taken, &backs));
+  CHECK(taken == 0 && backs == 0, "a failed run left counts %zu, %zu", taken, backs);
+  free(x0);
+  free(x1);
+  hoc_mesh_destroy(&mesh);
   fixture_mesh_free(&m);
   return 0;
 }

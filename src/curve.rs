@@ -719,6 +719,11 @@ fn step_through<K: ElementKernel>(
                         StepBackReason::NewtonFailed => Error::Solver(format!(
                             "{detail} {place}; try more increments, or the CIL or ILE formulation"
                         )),
+                        _ if stepping.adaptive => Error::InvalidElement(format!(
+                            "{detail} {place}; try more increments or another Poisson ratio, or turn adaptive \
+                             stepping off to get the mesh with its invalid cells reported (a cell no step keeps \
+                             valid, e.g. a kept boundary cap)"
+                        )),
                         _ => Error::InvalidElement(format!(
                             "{detail} {place}; try more increments or another Poisson ratio"
                         )),
