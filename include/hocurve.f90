@@ -51,6 +51,11 @@ module hocurve
   integer(c_int), parameter, public :: HOC_FORMULATION_IIL = 2
   integer(c_int), parameter, public :: HOC_FORMULATION_CIL = 3
   integer(c_int), parameter, public :: HOC_FORMULATION_NONLINEAR = 4
+  ! HocStepBackReason
+  integer(c_int), parameter, public :: HOC_STEP_BACK_SAMPLED_INVALID = 0
+  integer(c_int), parameter, public :: HOC_STEP_BACK_CERTIFIED_INVALID = 1
+  integer(c_int), parameter, public :: HOC_STEP_BACK_NEWTON_FAILED = 2
+  integer(c_int), parameter, public :: HOC_STEP_BACK_RESTARTED = 3
   ! HocNodeOrdering
   integer(c_int), parameter, public :: HOC_ORDERING_NATIVE = 0
   integer(c_int), parameter, public :: HOC_ORDERING_GMSH = 1
@@ -246,6 +251,42 @@ module hocurve
       integer(c_int) :: status
     end function hoc_mesh_set_fibres
 
+    !> enabled: 1 on, 0 off, -1 the default (on unless HOC_FORMULATION_LINEAR); max_splits 0..30
+    function hoc_mesh_set_adaptive_stepping(mesh, enabled, max_splits) &
+        bind(C, name="hoc_mesh_set_adaptive_stepping") result(status)
+      import :: c_int, c_ptr
+      type(c_ptr), value :: mesh
+      integer(c_int), value :: enabled, max_splits
+      integer(c_int) :: status
+    end function hoc_mesh_set_adaptive_stepping
+
+    function hoc_mesh_increment_count(mesh, n_taken, n_step_backs) &
+        bind(C, name="hoc_mesh_increment_count") result(status)
+      import :: c_int, c_ptr, c_size_t
+      type(c_ptr), value :: mesh
+      integer(c_size_t), intent(out) :: n_taken, n_step_backs
+      integer(c_int) :: status
+    end function hoc_mesh_increment_count
+
+    function hoc_mesh_get_load_fractions(mesh, n_taken, fractions) &
+        bind(C, name="hoc_mesh_get_load_fractions") result(status)
+      import :: c_int, c_ptr, c_size_t, c_double
+      type(c_ptr), value :: mesh
+      integer(c_size_t), value :: n_taken
+      real(c_double), intent(out) :: fractions(*)
+      integer(c_int) :: status
+    end function hoc_mesh_get_load_fractions
+
+    !> loads, steps, reasons (HOC_STEP_BACK_*), cells: n_step_backs each, or c_null_ptr
+    function hoc_mesh_get_step_backs(mesh, n_step_backs, loads, steps, reasons, cells) &
+        bind(C, name="hoc_mesh_get_step_backs") result(status)
+      import :: c_int, c_ptr, c_size_t
+      type(c_ptr), value :: mesh
+      integer(c_size_t), value :: n_step_backs
+      type(c_ptr), value :: loads, steps, reasons, cells
+      integer(c_int) :: status
+    end function hoc_mesh_get_step_backs
+
     function hoc_mesh_run_increments(mesh, increments) &
         bind(C, name="hoc_mesh_run_increments") result(status)
       import :: c_int, c_ptr
@@ -339,7 +380,8 @@ module hocurve
             hoc_mesh_set_projector, hoc_mesh_set_progress, hoc_mesh_set_linear_solver, &
             hoc_mesh_set_threads, hoc_mesh_set_remove_caps, hoc_mesh_get_input_cells, hoc_mesh_set_order, &
             hoc_mesh_set_material, hoc_mesh_set_formulation, hoc_mesh_set_newton, hoc_mesh_set_fibres, &
-            hoc_mesh_run_increments, &
+            hoc_mesh_set_adaptive_stepping, hoc_mesh_run_increments, hoc_mesh_increment_count, &
+            hoc_mesh_get_load_fractions, hoc_mesh_get_step_backs, &
             hoc_mesh_quality, hoc_mesh_cell_quality, hoc_mesh_node_count, hoc_mesh_cell_count, &
             hoc_mesh_get_nodes, hoc_mesh_get_cells, hoc_mesh_write, hoc_mesh_last_error, &
             hoc_status_string, hoc_version, hoc_string

@@ -56,8 +56,9 @@ typedef int (*HocProgressFn)(void *user_data, int stage, int step, int total);
  * `n` and `row_ptr[n]` stay the same. A is positive definite for the
  * LINEAR and ILE formulations; with CIL or NONLINEAR it may be indefinite.
  *
- * On entry `x` (`n` doubles) holds an initial guess: the previous increment's
- * solution (zeros for the first one, and for each Newton correction); on
+ * On entry `x` (`n` doubles) holds an initial guess: extrapolated from the
+ * previous increments' solutions (zeros for the first one, and for each
+ * Newton correction); on
  * return it must hold the solution. Return 0 on success. A nonzero return, or
  * a non-finite value left in `x`, stops the run with HOC_ERROR_SOLVER and a
  * message naming the external linear solver and the status; the mesh is then
@@ -123,6 +124,11 @@ typedef struct {
    */
   size_t n_uncertain;
 } HocQuality;
+
+/**
+ * Why adaptive load stepping rejected an increment (hoc_mesh_get_step_backs).
+ */
+typedef int HocStepBackReason;
 
 /**
  * Local node order of the returned connectivity.
@@ -267,6 +273,27 @@ typedef int HocNodeOrdering;
  * VTK Lagrange cell node order.
  */
 #define HOC_ORDERING_VTK 2
+
+/**
+ * Assembly on the new geometry met det J ≤ 0 at a quadrature point.
+ */
+#define HOC_STEP_BACK_SAMPLED_INVALID 0
+
+/**
+ * The certified check found a cell with det J ≤ 0 somewhere after the increment.
+ */
+#define HOC_STEP_BACK_CERTIFIED_INVALID 1
+
+/**
+ * Newton–Raphson did not converge (HOC_FORMULATION_NONLINEAR).
+ */
+#define HOC_STEP_BACK_NEWTON_FAILED 2
+
+/**
+ * An inversion between the sample points of an earlier increment was found:
+ * the run restarted from load 0 with the certified check after every increment.
+ */
+#define HOC_STEP_BACK_RESTARTED 3
 
 #ifdef __cplusplus
 extern "C" {
@@ -420,6 +447,23 @@ HocStatus hoc_mesh_set_formulation(HocMesh *mesh, HocFormulation formulation);
 HocStatus hoc_mesh_set_newton(HocMesh *mesh, double tolerance, int max_iterations);
 
 /**
+ * Adaptive load stepping: when an increment inverts a cell (certified
+ * check: Bernstein bounds of det J) or its Newton iteration fails, the mesh
+ * goes back to the start of that increment and the increment is halved, at
+ * most `max_splits` times (the smallest step is 1/(increments·2^max_splits)
+ * of the load); the run fails with HOC_ERROR_INVALID_ELEMENT or
+ * HOC_ERROR_SOLVER only at that limit. Default: on for the incremental
+ * formulations (ILE, IIL, CIL, NONLINEAR), off for HOC_FORMULATION_LINEAR;
+ * max_splits 6. See hoc_mesh_increment_count for what a run did.
+ *
+ * @param[in,out] mesh the handle
+ * @param[in] enabled 1 on, 0 off, -1 the default for the formulation
+ * @param[in] max_splits 0 to 30
+ * @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
+ */
+HocStatus hoc_mesh_set_adaptive_stepping(HocMesh *mesh, int enabled, int max_splits);
+
+/**
  * Fibre direction of every cell for the transversely isotropic materials
  * (3 doubles per cell, also in 2D; normalised by hocurve). NULL restores the
  * default: −x inside, tangent to the boundary on boundary cells.
@@ -433,7 +477,9 @@ HocStatus hoc_mesh_set_fibres(HocMesh *mesh, size_t n_cells, const double *fibre
 
 /**
  * Curve the mesh: project the tagged boundary and solve in `increments`
- * load increments. On failure the mesh is exactly as before the call.
+ * load increments (split further by adaptive stepping where needed, see
+ * hoc_mesh_set_adaptive_stepping). On failure the mesh is exactly as before
+ * the call.
  *
  * @param[in,out] mesh the handle
  * @param[in] increments ≥ 1
@@ -460,6 +506,44 @@ HocStatus hoc_mesh_quality(const HocMesh *mesh, HocQuality *out);
  * @return HOC_OK, HOC_ERROR_INVALID_ARGUMENT or HOC_ERROR_BUFFER_SIZE
  */
 HocStatus hoc_mesh_cell_quality(const HocMesh *mesh, int measure, size_t n, double *out);
+
+/**
+ * Load increments of the last successful run: how many were taken (the
+ * requested number, more if adaptive stepping split some) and how many were
+ * rejected and split. Both 0 before a run.
+ *
+ * @param[in] mesh the handle
+ * @param[out] n_taken accepted increments
+ * @param[out] n_step_backs rejected increments
+ * @return HOC_OK or HOC_ERROR_NULL_POINTER
+ */
+HocStatus hoc_mesh_increment_count(const HocMesh *mesh, size_t *n_taken, size_t *n_step_backs);
+
+/**
+ * Load fraction reached by each accepted increment of the last run, in
+ * (0, 1], increasing, the last one 1.
+ *
+ * @param[in] mesh the handle
+ * @param[in] n_taken must equal the count of hoc_mesh_increment_count
+ * @param[out] fractions `n_taken` doubles
+ * @return HOC_OK, HOC_ERROR_NULL_POINTER or HOC_ERROR_BUFFER_SIZE
+ */
+HocStatus hoc_mesh_get_load_fractions(const HocMesh *mesh, size_t n_taken, double *fractions);
+
+/**
+ * The increments of the last run that adaptive stepping rejected, in order:
+ * the load fraction at the start of each, its size, the reason and the
+ * offending cell (-1 when not known). Any output may be NULL.
+ *
+ * @param[in] mesh the handle
+ * @param[in] n_step_backs must equal the count of hoc_mesh_increment_count
+ * @param[out] loads `n_step_backs` doubles, or NULL
+ * @param[out] steps `n_step_backs` doubles, or NULL
+ * @param[out] reasons `n_step_backs` HOC_STEP_BACK_* values, or NULL
+ * @param[out] cells `n_step_backs` cell indices, or NULL
+ * @return HOC_OK or HOC_ERROR_BUFFER_SIZE
+ */
+HocStatus hoc_mesh_get_step_backs(const HocMesh *mesh, size_t n_step_backs, double *loads, double *steps, HocStepBackReason *reasons, int64_t *cells);
 
 /**
  * Number of nodes of the current (order-p) mesh.

@@ -226,6 +226,10 @@ class Mesh {
   void set_formulation(HocFormulation formulation) {
     check(hoc_mesh_set_formulation(mesh_, formulation), mesh_);
   }
+  /** Adaptive load stepping: enabled 1 on, 0 off, -1 the default for the formulation; max_splits 0..30. */
+  void set_adaptive_stepping(int enabled, int max_splits = 6) {
+    check(hoc_mesh_set_adaptive_stepping(mesh_, enabled, max_splits), mesh_);
+  }
   /** Newton–Raphson settings of HOC_FORMULATION_NONLINEAR: tolerance > 0, max_iterations ≥ 1. */
   void set_newton(double tolerance, int max_iterations) {
     check(hoc_mesh_set_newton(mesh_, tolerance, max_iterations), mesh_);
@@ -270,6 +274,14 @@ class Mesh {
     std::size_t n = 0, per = 0;
     check(hoc_mesh_cell_count(mesh_, &n, &per), mesh_);
     return {n, per};
+  }
+  /** Load fraction reached by each accepted increment of the last run (the last is 1). */
+  std::vector<double> load_fractions() const {
+    std::size_t taken = 0, backs = 0;
+    check(hoc_mesh_increment_count(mesh_, &taken, &backs), mesh_);
+    std::vector<double> l(taken);
+    check(hoc_mesh_get_load_fractions(mesh_, taken, l.data()), mesh_);
+    return l;
   }
   /** node_count()*dim coordinates, interleaved. */
   std::vector<double> nodes() const {

@@ -91,6 +91,22 @@ pub struct CurveOptions {
     /// with two faces on one smooth surface, which no curving keeps valid
     /// (see [`crate::mesh::caps`]). The curved mesh then has fewer cells.
     pub remove_caps: bool,
+    /// Adaptive load stepping ([`solve_increments`]): step back and halve an
+    /// increment that inverts a cell (certified check) or whose Newton
+    /// iteration fails. None (default): on for the incremental formulations
+    /// (ILE, IIL, CIL, NONLINEAR), off for `Linear`, the one-shot solve.
+    pub adaptive: Option<bool>,
+    /// Adaptive load stepping: halvings allowed per nominal increment, at most
+    /// [`MAX_SPLITS`] (default [`DEFAULT_MAX_SPLITS`] = 6: down to 1/64 of a step).
+    pub max_splits: usize,
+}
+
+impl CurveOptions {
+    /// Whether adaptive load stepping runs: `adaptive`, or by default on
+    /// unless the formulation is `Linear`.
+    pub fn adaptive_enabled(&self) -> bool {
+        self.adaptive.unwrap_or(self.formulation != Formulation::Linear)
+    }
 }
 
 impl Default for CurveOptions {
@@ -110,6 +126,8 @@ impl Default for CurveOptions {
             fibres: None,
             solver: SolverChoice::Auto,
             remove_caps: true,
+            adaptive: None,
+            max_splits: DEFAULT_MAX_SPLITS,
         }
     }
 }
@@ -142,6 +160,8 @@ pub struct Timings {
     pub setup: f64,
     pub solve: f64,
     pub quality: f64,
+    /// The validity check of adaptive load stepping after each increment.
+    pub check: f64,
 }
 
 /// What a run reports.
@@ -152,7 +172,16 @@ pub struct CurveReport {
     pub material: MaterialModel,
     pub young: f64,
     pub poisson: f64,
+    /// Nominal load increments asked for (1 for `Linear`).
     pub increments: usize,
+    /// Whether adaptive load stepping ran, and its split limit.
+    pub adaptive: bool,
+    pub max_splits: usize,
+    /// Load fraction reached by each accepted increment (the last is 1); its
+    /// length is the number of increments taken.
+    pub load_fractions: Vec<f64>,
+    /// Increments rejected and split by adaptive load stepping.
+    pub step_backs: Vec<StepBack>,
     pub nodes: usize,
     /// Unknowns of the linear system (free degrees of freedom).
     pub dofs: usize,
@@ -174,6 +203,13 @@ pub struct CurveReport {
     pub linear_solver: &'static str,
     /// Krylov iterations of each linear solve (zeros for a direct solver).
     pub solver_iterations: Vec<usize>,
+}
+
+impl CurveReport {
+    /// Accepted load increments (≥ `increments` when adaptive stepping split some).
+    pub fn increments_taken(&self) -> usize {
+        self.load_fractions.len()
+    }
 }
 
 /// The result of a successful run.
@@ -210,6 +246,9 @@ pub fn validate_options(opts: &CurveOptions) -> Result<LinearElastic> {
             opts.formulation.name(),
             opts.material.name()
         )));
+    }
+    if opts.max_splits > MAX_SPLITS {
+        return Err(Error::InvalidInput(format!("max_splits must be at most {MAX_SPLITS}, got {}", opts.max_splits)));
     }
     LinearElastic::try_from_young_poisson(opts.young, opts.poisson)
 }
@@ -285,6 +324,8 @@ pub fn curve(
         residual: matches!(opts.formulation, Formulation::Iil | Formulation::Cil),
         newton: (opts.formulation == Formulation::Nonlinear).then_some((opts.tolerance, opts.max_iterations)),
         solver: opts.solver.clone(),
+        adaptive: opts.adaptive_enabled(),
+        max_splits: opts.max_splits,
     };
     let mode = match opts.formulation {
         Formulation::Cil | Formulation::Nonlinear => TangentMode::Consistent,
@@ -328,6 +369,10 @@ pub fn curve(
         young: opts.young,
         poisson: opts.poisson,
         increments,
+        adaptive: opts.adaptive_enabled(),
+        max_splits: opts.max_splits,
+        load_fractions: solved.load_fractions,
+        step_backs: solved.step_backs,
         nodes: mesh.n_nodes(),
         dofs: solved.n_free,
         cells: mesh.n_cells(),
@@ -355,6 +400,69 @@ pub struct Stepping {
     /// Newton–Raphson to ‖R_f‖/‖R_0‖ < tolerance in at most max_iterations (NONLINEAR).
     pub newton: Option<(f64, usize)>,
     pub solver: SolverChoice,
+    /// Adaptive load stepping: step back and halve an increment that makes a
+    /// cell invalid (certified check, [`quality::ValidityCheck`]) or whose
+    /// assembly or Newton iteration fails.
+    pub adaptive: bool,
+    /// Adaptive load stepping: at most this many halvings, so the smallest
+    /// step is 1/(n·2^max_splits) of the load.
+    pub max_splits: usize,
+}
+
+impl Stepping {
+    /// `increments` equal ILE steps, built-in solver, adaptive stepping on
+    /// with [`DEFAULT_MAX_SPLITS`].
+    pub fn new(increments: usize) -> Stepping {
+        Stepping {
+            increments,
+            residual: false,
+            newton: None,
+            solver: SolverChoice::Auto,
+            adaptive: true,
+            max_splits: DEFAULT_MAX_SPLITS,
+        }
+    }
+}
+
+/// Why adaptive load stepping rejected an increment.
+#[non_exhaustive]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StepBackReason {
+    /// An assembly on the new geometry met det J ≤ 0 at a quadrature point
+    /// (or, above the certified check's order limit, at a sample point).
+    SampledInvalid,
+    /// The certified check found a cell with det J ≤ 0 somewhere after the increment.
+    CertifiedInvalid,
+    /// Newton–Raphson did not converge, or its residual was not finite.
+    NewtonFailed,
+    /// An earlier increment, checked only at sample points, had inverted a
+    /// cell between them (found by the certified check, or by the assembly
+    /// at the start of the next increment): the run went back to load 0 and
+    /// certified every increment from there.
+    Restarted,
+}
+
+impl StepBackReason {
+    pub fn name(self) -> &'static str {
+        match self {
+            StepBackReason::SampledInvalid => "sampled-invalid",
+            StepBackReason::CertifiedInvalid => "certified-invalid",
+            StepBackReason::NewtonFailed => "newton-failed",
+            StepBackReason::Restarted => "restarted",
+        }
+    }
+}
+
+/// One increment that adaptive load stepping rejected and split.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StepBack {
+    /// Load fraction at the start of the rejected increment.
+    pub load: f64,
+    /// Its size, as a fraction of the whole load.
+    pub step: f64,
+    pub reason: StepBackReason,
+    /// The offending cell, when known.
+    pub cell: Option<usize>,
 }
 
 /// What [`solve_increments`] reports.
@@ -362,11 +470,31 @@ pub struct Stepping {
 pub struct IncrementsReport {
     /// Unknowns of the linear system.
     pub n_free: usize,
-    /// NONLINEAR: relative residual history of each increment.
+    /// NONLINEAR: relative residual history of each attempted increment.
     pub newton_history: Vec<Vec<f64>>,
     pub linear_solver: &'static str,
-    /// Krylov iterations of each linear solve.
+    /// Krylov iterations of each linear solve (rejected increments included).
     pub solver_iterations: Vec<usize>,
+    /// Load fraction reached by each accepted increment (the last is 1); its
+    /// length is the number of increments taken.
+    pub load_fractions: Vec<f64>,
+    /// The increments rejected by adaptive load stepping, in order.
+    pub step_backs: Vec<StepBack>,
+}
+
+impl IncrementsReport {
+    /// Size of each accepted increment, as a fraction of the whole load.
+    pub fn steps(&self) -> Vec<f64> {
+        let mut prev = 0.0;
+        self.load_fractions
+            .iter()
+            .map(|&l| {
+                let h = l - prev;
+                prev = l;
+                h
+            })
+            .collect()
+    }
 }
 
 /// The solver `choice` asks for, set up for this mesh and pattern. `Auto`:
@@ -398,10 +526,28 @@ fn euclid(v: &[f64]) -> f64 {
 /// Move `mesh` by the prescribed boundary displacement `ubar` (one value per
 /// dof; only the boundary entries are used) in `stepping.increments` steps:
 /// each step assembles the kernel's matrix on the current geometry Ω_n and
-/// solves K_ff u_f = −K_fd ū/n (− R_f(x_n) with `residual`), then updates
+/// solves K_ff u_f = −K_fd ū h − R_f(x_n) (the residual only with
+/// `residual`) for a step h of the load (1/n unless split), then updates
 /// x_{n+1} = x_n + u; with `newton`, it then iterates K Δx = −R until
 /// convergence. Each solve starts from the secant extrapolation of the two
-/// previous increments' solutions.
+/// previous increments' solutions ([`Predictor`]).
+///
+/// With `stepping.adaptive`, an increment is rejected when its Newton
+/// iteration fails (or meets det J ≤ 0), or when it leaves a cell invalid
+/// that was valid at its start ([`quality::ValidityCheck`]); the geometry is
+/// then restored and the step halved, at most `max_splits` times per nominal
+/// increment (the full step comes back at the next nominal increment). The
+/// check after an increment is det J at the quadrature points of degree 2p
+/// (cheap: about 1–2 % of an increment at p = 4 in 3D), and the certified one
+/// (Bernstein bounds, det J > 0 everywhere) after the last increment and
+/// after every increment once the run has stepped back. If the certified
+/// check finds a cell that was already inverted before the increment, or an
+/// assembly fails on the geometry an increment starts from, an earlier
+/// increment inverted it between the sample points: the run starts again
+/// from load 0, certifying every increment ([`StepBackReason::Restarted`]).
+/// At the limit, or on a failure without `adaptive`, the run fails with
+/// [`Error::InvalidElement`] or [`Error::Solver`], and `mesh` is left as it
+/// was on entry.
 pub fn solve_increments<K: ElementKernel>(
     mesh: &mut HighOrderMesh,
     kernel: &K,
@@ -411,98 +557,376 @@ pub fn solve_increments<K: ElementKernel>(
     tick: &mut dyn FnMut(Stage, usize, usize) -> Result<()>,
 ) -> Result<IncrementsReport> {
     let increments = stepping.increments;
+    if increments == 0 {
+        return Err(Error::InvalidInput("the number of increments must be at least 1".into()));
+    }
+    if stepping.adaptive && stepping.max_splits > MAX_SPLITS {
+        return Err(Error::InvalidInput(format!(
+            "max_splits must be at most {MAX_SPLITS}, got {}",
+            stepping.max_splits
+        )));
+    }
     let dofs = DofMap::new(mesh);
-    let step: Vec<f64> = ubar.iter().map(|u| u / increments as f64).collect();
-    let zero = vec![0.0; ubar.len()];
     let mut out = IncrementsReport { n_free: dofs.n_free, ..Default::default() };
     if dofs.n_free == 0 || ubar.iter().all(|&u| u == 0.0) {
         for (x, u) in mesh.coords.iter_mut().zip(ubar) {
             *x += u;
         }
+        out.load_fractions.push(1.0);
         return Ok(out);
     }
+    let start = mesh.coords.clone();
+    let result = step_through(mesh, kernel, ubar, &stepping, &dofs, timings, tick, &mut out);
+    if result.is_err() {
+        mesh.coords.copy_from_slice(&start);
+    }
+    result.map(|()| out)
+}
+
+/// Largest `max_splits` accepted: the smallest step is then 2⁻³⁰ of a nominal one.
+pub const MAX_SPLITS: usize = 30;
+
+/// Default `max_splits` of adaptive load stepping: the smallest step is 1/64 of a nominal one.
+pub const DEFAULT_MAX_SPLITS: usize = 6;
+
+/// A rejected increment: why, where, and the message of the error it becomes
+/// when it cannot be split any more.
+enum Failure {
+    Retry {
+        reason: StepBackReason,
+        cell: Option<usize>,
+        detail: String,
+    },
+    /// The assembly failed on the geometry at the start of the increment.
+    AtStart(String),
+    Fatal(Error),
+}
+
+impl From<Error> for Failure {
+    fn from(e: Error) -> Failure {
+        match e {
+            Error::InvalidElement(detail) => {
+                Failure::Retry { reason: StepBackReason::SampledInvalid, cell: None, detail }
+            }
+            e => Failure::Fatal(e),
+        }
+    }
+}
+
+/// The increment loop of [`solve_increments`]. The load is counted in ticks
+/// of 1/(n·2^splits), so split steps add up exactly to the nominal ones.
+#[allow(clippy::too_many_arguments)]
+fn step_through<K: ElementKernel>(
+    mesh: &mut HighOrderMesh,
+    kernel: &K,
+    ubar: &[f64],
+    stepping: &Stepping,
+    dofs: &DofMap,
+    timings: &mut Timings,
+    tick: &mut dyn FnMut(Stage, usize, usize) -> Result<()>,
+    out: &mut IncrementsReport,
+) -> Result<()> {
+    let increments = stepping.increments;
     let t = Instant::now();
     let pattern = dofs.pattern(mesh);
-    let plan = AssemblyPlan::new(mesh, &dofs, &pattern);
-    let mut solver = make_solver(stepping.solver.clone(), mesh, &dofs, &pattern)?;
+    let plan = AssemblyPlan::new(mesh, dofs, &pattern);
+    let mut solver = make_solver(stepping.solver.clone(), mesh, dofs, &pattern)?;
     out.linear_solver = solver.name();
+    let check = stepping.adaptive.then(|| {
+        quality::ValidityCheck::new(LagrangeBasis::new(&NodeSet::new(mesh.simplex, mesh.order, mesh.spacing)))
+    });
     timings.setup += t.elapsed().as_secs_f64();
-    let residual = stepping.residual || stepping.newton.is_some();
-    // The increment solutions u_(k-1) and u_(k-2), for the next initial guess.
+    let ctx = IncrementContext {
+        dofs,
+        pattern: &pattern,
+        plan: &plan,
+        kernel,
+        residual: stepping.residual || stepping.newton.is_some(),
+        newton: stepping.newton,
+        check: check.as_ref(),
+    };
+    let splits = if stepping.adaptive { stepping.max_splits } else { 0 };
+    let nominal = 1u64 << splits;
+    let total = increments as u64 * nominal;
+    let mut predictor = Predictor::new(dofs.n_free);
     let mut u = vec![0.0; dofs.n_free];
     let mut du = vec![0.0; dofs.n_free];
-    let mut u_prev = vec![0.0; dofs.n_free];
-    for k in 0..increments {
+    let mut step = vec![0.0; ubar.len()];
+    let start = mesh.coords.clone();
+    let mut saved = mesh.coords.clone();
+    let (mut at, mut depth) = (0u64, 0usize);
+    // The sampled check after each increment, the certified one after the
+    // last, after any step back, and after every increment once an inversion
+    // has slipped between the sample points.
+    let mut certify_all = false;
+    while at < total {
+        let k = (at / nominal) as usize;
         tick(Stage::Increment, k, increments)?;
-        let context = |e: Error| match e {
-            Error::InvalidElement(m) => Error::InvalidElement(format!(
-                "{m} in increment {} of {increments}; try more increments or another Poisson ratio",
-                k + 1
-            )),
-            e => e,
-        };
+        let len = nominal >> depth;
+        let (from, h) = (at as f64 / total as f64, len as f64 / total as f64);
+        for (s, b) in step.iter_mut().zip(ubar) {
+            *s = b * h;
+        }
+        saved.copy_from_slice(&mesh.coords);
+        predictor.predict_into(h, &mut u);
+        let certified = certify_all || at + len == total || !out.step_backs.is_empty();
+        match ctx.attempt(mesh, solver.as_mut(), &step, &mut u, &mut du, &saved, certified, timings, out) {
+            Ok(Some(c)) if certified && !certify_all => {
+                // An earlier increment, checked only at the sample points,
+                // inverted cell c between them: start again from the
+                // straight mesh with the certified check after every step.
+                out.step_backs.push(StepBack { load: from, step: h, reason: StepBackReason::Restarted, cell: Some(c) });
+                mesh.coords.copy_from_slice(&start);
+                out.load_fractions.clear();
+                (at, depth, certify_all) = (0, 0, true);
+                predictor = Predictor::new(dofs.n_free);
+            }
+            Ok(_) => {
+                predictor.accept(&u, h);
+                at += len;
+                out.load_fractions.push(at as f64 / total as f64);
+                if at % nominal == 0 {
+                    depth = 0;
+                }
+            }
+            Err(Failure::Fatal(e)) => return Err(e),
+            Err(Failure::AtStart(detail)) if !stepping.adaptive || certify_all => {
+                return Err(Error::InvalidElement(format!(
+                    "{detail} in increment {} of {increments}; try more increments or another Poisson ratio",
+                    k + 1
+                )))
+            }
+            Err(Failure::AtStart(_)) => {
+                // An earlier increment left det J ≤ 0 at a quadrature point of
+                // the assembly between the points of the sampled check.
+                out.step_backs.push(StepBack { load: from, step: h, reason: StepBackReason::Restarted, cell: None });
+                mesh.coords.copy_from_slice(&start);
+                out.load_fractions.clear();
+                (at, depth, certify_all) = (0, 0, true);
+                predictor = Predictor::new(dofs.n_free);
+            }
+            Err(Failure::Retry { reason, cell, detail }) => {
+                mesh.coords.copy_from_slice(&saved);
+                if depth >= splits {
+                    let mut place = format!("in increment {} of {increments}", k + 1);
+                    if stepping.adaptive {
+                        place += &format!(
+                            " (load {from:.4} to {:.4}, after halving the step {splits} times: the limit of adaptive \
+                             stepping)",
+                            from + h
+                        );
+                    }
+                    return Err(match reason {
+                        StepBackReason::NewtonFailed => Error::Solver(format!(
+                            "{detail} {place}; try more increments, or the CIL or ILE formulation"
+                        )),
+                        _ if stepping.adaptive => Error::InvalidElement(format!(
+                            "{detail} {place}; try more increments or another Poisson ratio, or turn adaptive \
+                             stepping off to get the mesh with its invalid cells reported (a cell no step keeps \
+                             valid, e.g. a kept boundary cap)"
+                        )),
+                        _ => Error::InvalidElement(format!(
+                            "{detail} {place}; try more increments or another Poisson ratio"
+                        )),
+                    });
+                }
+                out.step_backs.push(StepBack { load: from, step: h, reason, cell });
+                depth += 1;
+                predictor.step_back();
+            }
+        }
+    }
+    Ok(())
+}
+
+/// What one increment needs besides the geometry.
+struct IncrementContext<'a, K> {
+    dofs: &'a DofMap,
+    pattern: &'a SymmetricCsc,
+    plan: &'a AssemblyPlan,
+    kernel: &'a K,
+    residual: bool,
+    newton: Option<(f64, usize)>,
+    check: Option<&'a quality::ValidityCheck>,
+}
+
+impl<K: ElementKernel> IncrementContext<'_, K> {
+    /// One increment from the geometry `saved` (= `mesh.coords` on entry)
+    /// with prescribed values `step`, starting the solve from `u`, then the
+    /// validity check (certified or sampled). Ok(Some(c)): accepted, but cell
+    /// c was already invalid at the start.
+    #[allow(clippy::too_many_arguments)]
+    fn attempt(
+        &self,
+        mesh: &mut HighOrderMesh,
+        solver: &mut dyn LinearSolver,
+        step: &[f64],
+        u: &mut [f64],
+        du: &mut [f64],
+        saved: &[f64],
+        certified: bool,
+        timings: &mut Timings,
+        out: &mut IncrementsReport,
+    ) -> std::result::Result<Option<usize>, Failure> {
+        let dofs = self.dofs;
         let t = Instant::now();
+        // det J ≤ 0 here is at the start geometry: no split of this increment helps.
         let (values, rhs) =
-            assemble(mesh, &mesh.coords, &dofs, &pattern, &plan, kernel, &step, residual).map_err(context)?;
+            assemble(mesh, &mesh.coords, dofs, self.pattern, self.plan, self.kernel, step, self.residual).map_err(
+                |e| match e {
+                    Error::InvalidElement(detail) => Failure::AtStart(detail),
+                    e => Failure::Fatal(e),
+                },
+            )?;
         timings.assembly += t.elapsed().as_secs_f64();
         let r0 = euclid(&rhs).max(f64::MIN_POSITIVE);
         let t = Instant::now();
-        // Secant predictor: the increments are equal and the solution path
-        // smooth, so u_k ≈ 2 u_(k-1) − u_(k-2) (error O(1/n²) against O(1/n)
-        // for u_(k-1) alone): at p = 4, 10 increments, 1–2 PCG iterations
-        // after the third increment instead of 6.
-        if k >= 2 {
-            for (x, p) in u.iter_mut().zip(&mut u_prev) {
-                (*x, *p) = (2.0 * *x - *p, *x);
-            }
-        } else {
-            u_prev.copy_from_slice(&u);
-        }
-        out.solver_iterations.push(solver.solve(&pattern, &values, &rhs, &mut u)?.iterations);
+        out.solver_iterations.push(solver.solve(self.pattern, &values, &rhs, u).map_err(Failure::Fatal)?.iterations);
         timings.solve += t.elapsed().as_secs_f64();
         for (dof, x) in mesh.coords.iter_mut().enumerate() {
             let f = dofs.free[dof];
             *x += if f == usize::MAX { step[dof] } else { u[f] };
         }
-        let Some((tolerance, max_iterations)) = stepping.newton else { continue };
-        let mut hist = vec![1.0];
-        let mut converged = false;
-        for _ in 0..max_iterations {
-            let t = Instant::now();
-            let (values, rhs) =
-                assemble(mesh, &mesh.coords, &dofs, &pattern, &plan, kernel, &zero, true).map_err(context)?;
-            timings.assembly += t.elapsed().as_secs_f64();
-            let ratio = euclid(&rhs) / r0;
-            hist.push(ratio);
-            if !ratio.is_finite() {
-                return Err(Error::Solver(format!("Newton residual is not finite in increment {}", k + 1)));
+        if let Some((tolerance, max_iterations)) = self.newton {
+            let zero = vec![0.0; step.len()];
+            let mut hist = vec![1.0];
+            let mut converged = false;
+            for _ in 0..max_iterations {
+                let t = Instant::now();
+                let assembled = assemble(mesh, &mesh.coords, dofs, self.pattern, self.plan, self.kernel, &zero, true);
+                timings.assembly += t.elapsed().as_secs_f64();
+                let (values, rhs) = match assembled {
+                    Ok(a) => a,
+                    Err(e) => {
+                        out.newton_history.push(hist);
+                        return Err(e.into());
+                    }
+                };
+                let ratio = euclid(&rhs) / r0;
+                hist.push(ratio);
+                if !ratio.is_finite() {
+                    out.newton_history.push(hist);
+                    return Err(Failure::Retry {
+                        reason: StepBackReason::NewtonFailed,
+                        cell: None,
+                        detail: "Newton residual is not finite".into(),
+                    });
+                }
+                if ratio < tolerance {
+                    converged = true;
+                    break;
+                }
+                let t = Instant::now();
+                du.fill(0.0);
+                out.solver_iterations
+                    .push(solver.solve(self.pattern, &values, &rhs, du).map_err(Failure::Fatal)?.iterations);
+                timings.solve += t.elapsed().as_secs_f64();
+                for (dof, x) in mesh.coords.iter_mut().enumerate() {
+                    let f = dofs.free[dof];
+                    if f != usize::MAX {
+                        *x += du[f];
+                    }
+                }
             }
-            if ratio < tolerance {
-                converged = true;
+            let last = *hist.last().expect("history starts with 1");
+            out.newton_history.push(hist);
+            if !converged {
+                return Err(Failure::Retry {
+                    reason: StepBackReason::NewtonFailed,
+                    cell: None,
+                    detail: format!(
+                        "Newton-Raphson did not converge in {max_iterations} iterations (relative residual {last:.2e})"
+                    ),
+                });
+            }
+        }
+        let Some(check) = self.check else { return Ok(None) };
+        let t = Instant::now();
+        // Only a cell that this increment made invalid rejects it; one that
+        // was already invalid at its start is returned to the caller.
+        let (mut new, mut old) = (None, None);
+        for c in check.invalid_cells(&mesh.coords, &mesh.cells, certified) {
+            if check.cell_is_invalid(saved, mesh.cell(c), certified) {
+                old = old.or(Some(c));
+            } else {
+                new = Some(c);
                 break;
             }
-            let t = Instant::now();
-            du.fill(0.0);
-            out.solver_iterations.push(solver.solve(&pattern, &values, &rhs, &mut du)?.iterations);
-            timings.solve += t.elapsed().as_secs_f64();
-            for (dof, x) in mesh.coords.iter_mut().enumerate() {
-                let f = dofs.free[dof];
-                if f != usize::MAX {
-                    *x += du[f];
+        }
+        timings.check += t.elapsed().as_secs_f64();
+        match new {
+            Some(c) if certified && check.has_certified() => Err(Failure::Retry {
+                reason: StepBackReason::CertifiedInvalid,
+                cell: Some(c),
+                detail: format!("cell {c} is inverted (certified: det J <= 0 somewhere in it)"),
+            }),
+            Some(c) => Err(Failure::Retry {
+                reason: StepBackReason::SampledInvalid,
+                cell: Some(c),
+                detail: format!("cell {c} has det J <= 0 at a quadrature point"),
+            }),
+            None => Ok(old),
+        }
+    }
+}
+
+/// Secant predictor of the increment solutions u_k (free dofs) for steps of
+/// any size h_k. With the rates v_k = u_k / h_k (mean dx/dλ over increment
+/// k, i.e. the rate at its midpoint to second order), extrapolate the rate
+/// linearly through the midpoints of the two previous increments:
+///
+/// u_k ≈ h_k [v_(k-1) + (v_(k-1) − v_(k-2)) (h_(k-1) + h_k) / (h_(k-2) + h_(k-1))],
+///
+/// exact when x(λ) is quadratic in the load λ, and 2 u_(k-1) − u_(k-2) for
+/// equal steps. After one previous increment, u_k ≈ h_k v_(k-1); after a step
+/// back the curvature term is dropped until two increments are known again
+/// (the path was just found to bend).
+#[derive(Debug, Clone)]
+pub struct Predictor {
+    v1: Vec<f64>,
+    v2: Vec<f64>,
+    h1: f64,
+    h2: f64,
+    known: usize,
+}
+
+impl Predictor {
+    pub fn new(n: usize) -> Predictor {
+        Predictor { v1: vec![0.0; n], v2: vec![0.0; n], h1: 0.0, h2: 0.0, known: 0 }
+    }
+
+    /// The guess for an increment of size `h`, written into `u`.
+    pub fn predict_into(&self, h: f64, u: &mut [f64]) {
+        match self.known {
+            0 => u.fill(0.0),
+            1 => {
+                for (x, v) in u.iter_mut().zip(&self.v1) {
+                    *x = h * v;
+                }
+            }
+            _ => {
+                let r = (self.h1 + h) / (self.h2 + self.h1);
+                for ((x, v1), v2) in u.iter_mut().zip(&self.v1).zip(&self.v2) {
+                    *x = h * (v1 + r * (v1 - v2));
                 }
             }
         }
-        let last = *hist.last().expect("history starts with 1");
-        out.newton_history.push(hist);
-        if !converged {
-            return Err(Error::Solver(format!(
-                "Newton-Raphson did not converge in {max_iterations} iterations in increment {} of {increments} \
-                 (relative residual {last:.2e}); try more increments, or the CIL or ILE formulation",
-                k + 1
-            )));
-        }
     }
-    Ok(out)
+
+    /// Record the solution `u` of an accepted increment of size `h`.
+    pub fn accept(&mut self, u: &[f64], h: f64) {
+        std::mem::swap(&mut self.v1, &mut self.v2);
+        for (v, x) in self.v1.iter_mut().zip(u) {
+            *v = x / h;
+        }
+        (self.h2, self.h1) = (self.h1, h);
+        self.known = (self.known + 1).min(2);
+    }
+
+    /// Forget the curvature term after a rejected increment.
+    pub fn step_back(&mut self) {
+        self.known = self.known.min(1);
+    }
 }
 
 /// Batch size of projector calls.
@@ -630,4 +1054,58 @@ pub fn default_fibres(linear: &LinearMesh, topo: &Topology) -> Vec<[f64; 3]> {
         }
     }
     fibres
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// x(λ) = a λ + b λ² per dof: the increment over [λ0, λ0 + h].
+    fn increment(l0: f64, h: f64) -> Vec<f64> {
+        let (a, b) = ([1.0, -2.0, 0.5], [3.0, 0.25, -4.0]);
+        (0..3).map(|i| a[i] * h + b[i] * ((l0 + h).powi(2) - l0 * l0)).collect()
+    }
+
+    #[test]
+    fn secant_predictor_is_exact_on_quadratic_paths_with_unequal_steps() {
+        let steps = [0.25, 0.125, 0.0625, 0.0625, 0.25, 0.03125];
+        let mut p = Predictor::new(3);
+        let mut l = 0.0;
+        let mut u = vec![0.0; 3];
+        for (k, &h) in steps.iter().enumerate() {
+            p.predict_into(h, &mut u);
+            let exact = increment(l, h);
+            if k >= 2 {
+                for (g, e) in u.iter().zip(&exact) {
+                    assert!((g - e).abs() < 1e-13, "step {k}: {u:?} vs {exact:?}");
+                }
+            }
+            p.accept(&exact, h);
+            l += h;
+        }
+    }
+
+    #[test]
+    fn secant_predictor_with_equal_steps_is_two_u1_minus_u2_and_resets_after_a_step_back() {
+        let mut p = Predictor::new(2);
+        let mut u = vec![9.0; 2];
+        p.predict_into(0.1, &mut u);
+        assert_eq!(u, [0.0, 0.0]);
+        p.accept(&[1.0, 2.0], 0.1);
+        p.predict_into(0.1, &mut u);
+        assert!((u[0] - 1.0).abs() < 1e-15 && (u[1] - 2.0).abs() < 1e-15);
+        p.accept(&[1.5, 2.0], 0.1);
+        p.predict_into(0.1, &mut u);
+        assert!((u[0] - 2.0).abs() < 1e-14 && (u[1] - 2.0).abs() < 1e-14, "{u:?}");
+        // After a step back: first order, scaled by the step ratio.
+        p.step_back();
+        p.predict_into(0.05, &mut u);
+        assert!((u[0] - 0.75).abs() < 1e-14 && (u[1] - 1.0).abs() < 1e-14, "{u:?}");
+    }
+
+    #[test]
+    fn steps_are_the_differences_of_the_load_fractions() {
+        let r = IncrementsReport { load_fractions: vec![0.5, 0.75, 1.0], ..Default::default() };
+        assert_eq!(r.steps(), [0.5, 0.25, 0.25]);
+    }
 }

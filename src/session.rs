@@ -181,6 +181,22 @@ impl Session {
         Ok(())
     }
 
+    /// Adaptive load stepping ([`crate::curve::solve_increments`]): `enabled`
+    /// None restores the default (on for the incremental formulations, off
+    /// for LINEAR); `max_splits` halvings per increment, at most
+    /// [`crate::curve::MAX_SPLITS`].
+    pub fn set_adaptive(&mut self, enabled: Option<bool>, max_splits: usize) -> Result<()> {
+        if max_splits > crate::curve::MAX_SPLITS {
+            return Err(Error::InvalidInput(format!(
+                "max_splits must be between 0 and {}, got {max_splits}",
+                crate::curve::MAX_SPLITS
+            )));
+        }
+        self.opts.adaptive = enabled;
+        self.opts.max_splits = max_splits;
+        Ok(())
+    }
+
     /// Fibre direction per cell for the transversely isotropic models (None:
     /// the paper's default). Checked at the next run.
     pub fn set_fibres(&mut self, fibres: Option<Vec<[f64; 3]>>) -> Result<()> {

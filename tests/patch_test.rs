@@ -40,7 +40,7 @@ fn run_patch(linear: &LinearMesh, order: usize, increments: usize) -> f64 {
     let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(topo.simplex, 2 * order));
     let kernel = LinearElasticKernel { cache, material: LinearElastic::try_from_young_poisson(1e5, 0.3).unwrap() };
     let mut t = Timings::default();
-    let stepping = Stepping { increments, residual: false, newton: None, solver: Default::default() };
+    let stepping = Stepping::new(increments);
     solve_increments(&mut mesh, &kernel, &ubar, stepping, &mut t, &mut |_, _, _| Ok(())).unwrap();
     let mut err: f64 = 0.0;
     for n in 0..mesh.n_nodes() {

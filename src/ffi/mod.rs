@@ -18,7 +18,7 @@ use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 
-use crate::curve::{Formulation, Progress, Stage};
+use crate::curve::{Formulation, Progress, Stage, StepBackReason};
 use crate::geometry::Projector;
 use crate::material::MaterialModel;
 use crate::mesh::LinearMesh;
@@ -96,6 +96,18 @@ pub const HOC_ORDERING_GMSH: HocNodeOrdering = 1;
 /// VTK Lagrange cell node order.
 pub const HOC_ORDERING_VTK: HocNodeOrdering = 2;
 
+/// Why adaptive load stepping rejected an increment (hoc_mesh_get_step_backs).
+pub type HocStepBackReason = c_int;
+/// Assembly on the new geometry met det J ≤ 0 at a quadrature point.
+pub const HOC_STEP_BACK_SAMPLED_INVALID: HocStepBackReason = 0;
+/// The certified check found a cell with det J ≤ 0 somewhere after the increment.
+pub const HOC_STEP_BACK_CERTIFIED_INVALID: HocStepBackReason = 1;
+/// Newton–Raphson did not converge (HOC_FORMULATION_NONLINEAR).
+pub const HOC_STEP_BACK_NEWTON_FAILED: HocStepBackReason = 2;
+/// An inversion between the sample points of an earlier increment was found:
+/// the run restarted from load 0 with the certified check after every increment.
+pub const HOC_STEP_BACK_RESTARTED: HocStepBackReason = 3;
+
 /// Mesh quality (paper section 5): minima over the cells, mean Q3, and the
 /// number of cells with a non-positive Jacobian at a sample point.
 #[repr(C)]
@@ -155,8 +167,9 @@ pub type HocProgressFn =
 /// `n` and `row_ptr[n]` stay the same. A is positive definite for the
 /// LINEAR and ILE formulations; with CIL or NONLINEAR it may be indefinite.
 ///
-/// On entry `x` (`n` doubles) holds an initial guess: the previous increment's
-/// solution (zeros for the first one, and for each Newton correction); on
+/// On entry `x` (`n` doubles) holds an initial guess: extrapolated from the
+/// previous increments' solutions (zeros for the first one, and for each
+/// Newton correction); on
 /// return it must hold the solution. Return 0 on success. A nonzero return, or
 /// a non-finite value left in `x`, stops the run with HOC_ERROR_SOLVER and a
 /// message naming the external linear solver and the status; the mesh is then
@@ -683,6 +696,38 @@ pub unsafe extern "C" fn hoc_mesh_set_newton(mesh: *mut HocMesh, tolerance: f64,
     })
 }
 
+/// Adaptive load stepping: when an increment inverts a cell (certified
+/// check: Bernstein bounds of det J) or its Newton iteration fails, the mesh
+/// goes back to the start of that increment and the increment is halved, at
+/// most `max_splits` times (the smallest step is 1/(increments·2^max_splits)
+/// of the load); the run fails with HOC_ERROR_INVALID_ELEMENT or
+/// HOC_ERROR_SOLVER only at that limit. Default: on for the incremental
+/// formulations (ILE, IIL, CIL, NONLINEAR), off for HOC_FORMULATION_LINEAR;
+/// max_splits 6. See hoc_mesh_increment_count for what a run did.
+///
+/// @param[in,out] mesh the handle
+/// @param[in] enabled 1 on, 0 off, -1 the default for the formulation
+/// @param[in] max_splits 0 to 30
+/// @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_set_adaptive_stepping(
+    mesh: *mut HocMesh,
+    enabled: c_int,
+    max_splits: c_int,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle_mut(mesh)?;
+        let enabled = match enabled {
+            -1 => None,
+            0 => Some(false),
+            1 => Some(true),
+            e => return Err(arg(format!("enabled must be 1, 0 or -1, got {e}"))),
+        };
+        let n = usize::try_from(max_splits).map_err(|_| arg(format!("max_splits must be >= 0, got {max_splits}")))?;
+        h.session.set_adaptive(enabled, n).map_err(err)
+    })
+}
+
 /// Fibre direction of every cell for the transversely isotropic materials
 /// (3 doubles per cell, also in 2D; normalised by hocurve). NULL restores the
 /// default: −x inside, tangent to the boundary on boundary cells.
@@ -708,7 +753,9 @@ pub unsafe extern "C" fn hoc_mesh_set_fibres(mesh: *mut HocMesh, n_cells: usize,
 }
 
 /// Curve the mesh: project the tagged boundary and solve in `increments`
-/// load increments. On failure the mesh is exactly as before the call.
+/// load increments (split further by adaptive stepping where needed, see
+/// hoc_mesh_set_adaptive_stepping). On failure the mesh is exactly as before
+/// the call.
 ///
 /// @param[in,out] mesh the handle
 /// @param[in] increments ≥ 1
@@ -785,6 +832,111 @@ pub unsafe extern "C" fn hoc_mesh_cell_quality(
         let out = std::slice::from_raw_parts_mut(out, n);
         for (o, q) in out.iter_mut().zip(cq) {
             *o = get(q);
+        }
+        Ok(())
+    })
+}
+
+/// Load increments of the last successful run: how many were taken (the
+/// requested number, more if adaptive stepping split some) and how many were
+/// rejected and split. Both 0 before a run.
+///
+/// @param[in] mesh the handle
+/// @param[out] n_taken accepted increments
+/// @param[out] n_step_backs rejected increments
+/// @return HOC_OK or HOC_ERROR_NULL_POINTER
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_increment_count(
+    mesh: *const HocMesh,
+    n_taken: *mut usize,
+    n_step_backs: *mut usize,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle(mesh)?;
+        let (taken, backs) = h.session.report().map_or((0, 0), |r| (r.load_fractions.len(), r.step_backs.len()));
+        *n_taken.as_mut().ok_or_else(|| null("n_taken"))? = taken;
+        *n_step_backs.as_mut().ok_or_else(|| null("n_step_backs"))? = backs;
+        Ok(())
+    })
+}
+
+/// Load fraction reached by each accepted increment of the last run, in
+/// (0, 1], increasing, the last one 1.
+///
+/// @param[in] mesh the handle
+/// @param[in] n_taken must equal the count of hoc_mesh_increment_count
+/// @param[out] fractions `n_taken` doubles
+/// @return HOC_OK, HOC_ERROR_NULL_POINTER or HOC_ERROR_BUFFER_SIZE
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_get_load_fractions(
+    mesh: *const HocMesh,
+    n_taken: usize,
+    fractions: *mut f64,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle(mesh)?;
+        let l = h.session.report().map_or(&[][..], |r| &r.load_fractions[..]);
+        if n_taken != l.len() {
+            return Err((
+                HOC_ERROR_BUFFER_SIZE,
+                format!("n_taken = {n_taken}, but the run took {} increments", l.len()),
+            ));
+        }
+        if n_taken > 0 {
+            std::slice::from_raw_parts_mut(fractions.as_mut().ok_or_else(|| null("fractions"))?, n_taken)
+                .copy_from_slice(l);
+        }
+        Ok(())
+    })
+}
+
+/// The increments of the last run that adaptive stepping rejected, in order:
+/// the load fraction at the start of each, its size, the reason and the
+/// offending cell (-1 when not known). Any output may be NULL.
+///
+/// @param[in] mesh the handle
+/// @param[in] n_step_backs must equal the count of hoc_mesh_increment_count
+/// @param[out] loads `n_step_backs` doubles, or NULL
+/// @param[out] steps `n_step_backs` doubles, or NULL
+/// @param[out] reasons `n_step_backs` HOC_STEP_BACK_* values, or NULL
+/// @param[out] cells `n_step_backs` cell indices, or NULL
+/// @return HOC_OK or HOC_ERROR_BUFFER_SIZE
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_get_step_backs(
+    mesh: *const HocMesh,
+    n_step_backs: usize,
+    loads: *mut f64,
+    steps: *mut f64,
+    reasons: *mut HocStepBackReason,
+    cells: *mut i64,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle(mesh)?;
+        let b = h.session.report().map_or(&[][..], |r| &r.step_backs[..]);
+        if n_step_backs != b.len() {
+            return Err((
+                HOC_ERROR_BUFFER_SIZE,
+                format!("n_step_backs = {n_step_backs}, but the run stepped back {} times", b.len()),
+            ));
+        }
+        for (i, s) in b.iter().enumerate() {
+            if !loads.is_null() {
+                *loads.add(i) = s.load;
+            }
+            if !steps.is_null() {
+                *steps.add(i) = s.step;
+            }
+            if !reasons.is_null() {
+                *reasons.add(i) = match s.reason {
+                    StepBackReason::SampledInvalid => HOC_STEP_BACK_SAMPLED_INVALID,
+                    StepBackReason::CertifiedInvalid => HOC_STEP_BACK_CERTIFIED_INVALID,
+                    StepBackReason::NewtonFailed => HOC_STEP_BACK_NEWTON_FAILED,
+                    StepBackReason::Restarted => HOC_STEP_BACK_RESTARTED,
+                };
+            }
+            if !cells.is_null() {
+                *cells.add(i) = s.cell.map_or(-1, |c| c as i64);
+            }
         }
         Ok(())
     })

@@ -4,7 +4,7 @@
 //! hocurve demo [--order P] [--output-dir DIR]
 //! hocurve curve IN.msh --order P --geometry TAG=SHAPE ... [--formulation F] [--material M]
 //!               [--young E] [--poisson NU] [--increments N] [--spacing optimal|equispaced] [--solver S]
-//!               --output OUT.msh|OUT.vtu [--report R.json]
+//!               [--adaptive on|off] [--max-splits K] --output OUT.msh|OUT.vtu [--report R.json]
 //! hocurve quality MESH.msh [--report R.json]
 //! hocurve study [--quick] [--output-dir DIR]
 //! hocurve bench [--quick] [--dims 2,3] [--orders 2,3,4,5,6] [--max-dofs N] [--increments N]
@@ -46,7 +46,7 @@ USAGE:
                 [--formulation linear|ile] [--material linear]
                 [--young E] [--poisson NU] [--increments N]
                 [--spacing optimal|equispaced] [--solver auto|direct|iterative]
-                [--caps remove|keep]
+                [--caps remove|keep] [--adaptive on|off] [--max-splits K]
       Curve a linear gmsh (.msh 4.1) mesh. TAG is the elementary entity tag of
       the boundary facets (or 3D feature curves) that lie on SHAPE:
         sphere:cx,cy,cz,r        circle:cx,cy,r (2D)     circle3:cx,cy,cz,nx,ny,nz,r
@@ -55,6 +55,11 @@ USAGE:
       Boundary facets whose tag has no shape stay straight. 3D boundary caps
       (tets with two faces on one smooth surface, which cannot stay valid) are
       removed unless --caps keep; the report says how many.
+      Adaptive load stepping (default on, off for --formulation linear): an
+      increment that inverts a cell (certified det J bounds) or whose Newton
+      iteration fails is undone and halved, at most K times (--max-splits,
+      default 6, at most 30); the run fails only at that limit. The increments
+      taken and the step backs are printed and written to the report.
 
   hocurve quality MESH.msh [--report R.json]
       Measure Q1, Q2, Q3 of any high-order gmsh mesh.
@@ -158,6 +163,13 @@ fn options_from(args: &Args, default_order: usize) -> Result<CurveOptions> {
     o.young = args.number("young", o.young)?;
     o.poisson = args.number("poisson", o.poisson)?;
     o.increments = args.number("increments", o.increments)?;
+    o.adaptive = match args.get("adaptive") {
+        None => None,
+        Some("on") => Some(true),
+        Some("off") => Some(false),
+        Some(a) => return Err(Error::InvalidInput(format!("unknown --adaptive '{a}' (on or off)"))),
+    };
+    o.max_splits = args.number("max-splits", o.max_splits)?;
     o.remove_caps = match args.get("caps") {
         None | Some("remove") => true,
         Some("keep") => false,
@@ -197,6 +209,7 @@ fn run_case(label: &str, mesh: &LinearMesh, projector: &ShapeProjector, opts: &C
         "[{label}] p={} nodes={} dofs={} min Q3={:.4} mean Q3={:.4} invalid={} ({:.2} s)",
         r.order, r.nodes, r.dofs, r.quality.min_q3, r.quality.mean_q3, r.quality.n_invalid, r.timings.total
     );
+    eprintln!("[{label}] {}", increments_line(r));
     if r.quality.n_invalid > 0 {
         eprintln!(
             "[{label}] WARNING: {} invalid element(s) (worst cell {}); try more --increments or another --poisson",
@@ -206,8 +219,31 @@ fn run_case(label: &str, mesh: &LinearMesh, projector: &ShapeProjector, opts: &C
     Ok(c)
 }
 
+/// "increments: 4 taken of 1 requested (adaptive, at most 6 splits) at load
+/// 0.5, 0.75, 0.875, 1; stepped back at 0 (step 1, certified-invalid, cell 0)".
+fn increments_line(r: &hocurve::curve::CurveReport) -> String {
+    let mut s = format!("increments: {} taken of {} requested", r.increments_taken(), r.increments);
+    s += &if r.adaptive { format!(" (adaptive, at most {} splits)", r.max_splits) } else { " (adaptive off)".into() };
+    if r.increments_taken() != r.increments || !r.step_backs.is_empty() {
+        let loads: Vec<String> = r.load_fractions.iter().map(|l| format!("{l}")).collect();
+        s += &format!(" at load {}", loads.join(", "));
+    }
+    for (i, b) in r.step_backs.iter().enumerate() {
+        s += if i == 0 { "; stepped back at " } else { ", " };
+        s += &format!("{} (step {}, {}", b.load, b.step, b.reason.name());
+        if let Some(c) = b.cell {
+            s += &format!(", cell {c}");
+        }
+        s.push(')');
+    }
+    s
+}
+
 fn cmd_demo(argv: &[String]) -> Result<()> {
-    let args = Args::parse(argv, &["order", "output-dir", "increments", "poisson", "formulation", "material"])?;
+    let args = Args::parse(
+        argv,
+        &["order", "output-dir", "increments", "poisson", "formulation", "material", "adaptive", "max-splits"],
+    )?;
     let dir = PathBuf::from(args.get("output-dir").unwrap_or("."));
     std::fs::create_dir_all(&dir).map_err(|e| Error::Io(format!("cannot create {}: {e}", dir.display())))?;
     let opts = options_from(&args, 4)?;
@@ -267,6 +303,8 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
             "spacing",
             "solver",
             "caps",
+            "adaptive",
+            "max-splits",
             "output",
             "report",
         ],
@@ -422,10 +460,11 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
     let t = &r.timings;
     format!(
         "{{\n  \"order\": {},\n  \"formulation\": \"{}\",\n  \"material\": \"{}\",\n  \"young\": {},\n  \
-         \"poisson\": {},\n  \"increments\": {},\n  \"spacing\": \"{}\",\n  \"nodes\": {},\n  \"dofs\": {},\n  \
+         \"poisson\": {},\n  \"increments\": {},\n  \"adaptive\": {},\n  \"max_splits\": {},\n  \
+         \"increments_taken\": {},\n  \"load_fractions\": {:?},\n  \"step_backs\": [{}],\n  \"spacing\": \"{}\",\n  \"nodes\": {},\n  \"dofs\": {},\n  \
          \"cells\": {},\n  \"removed_caps\": {},\n  \"projected_nodes\": {},\n  \"max_projection_distance\": {},\n{},\n  \
          \"newton_history\": {:?},\n  \"linear_solver\": \"{}\",\n  \"solver_iterations\": {:?},\n  \
-         \"seconds\": {{\"total\": {}, \"elevate\": {}, \"project\": {}, \"assembly\": {}, \"setup\": {}, \"solve\": {}, \"quality\": {}}},\n  \
+         \"seconds\": {{\"total\": {}, \"elevate\": {}, \"project\": {}, \"assembly\": {}, \"setup\": {}, \"solve\": {}, \"quality\": {}, \"check\": {}}},\n  \
          \"output\": {}\n}}",
         r.order,
         r.formulation.name(),
@@ -433,6 +472,21 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
         num(r.young),
         num(r.poisson),
         r.increments,
+        r.adaptive,
+        r.max_splits,
+        r.increments_taken(),
+        r.load_fractions,
+        r.step_backs
+            .iter()
+            .map(|b| format!(
+                "{{\"load\": {}, \"step\": {}, \"reason\": \"{}\", \"cell\": {}}}",
+                num(b.load),
+                num(b.step),
+                b.reason.name(),
+                b.cell.map_or("null".into(), |c| c.to_string())
+            ))
+            .collect::<Vec<_>>()
+            .join(", "),
         if opts.spacing == NodeSpacing::Optimal { "optimal" } else { "equispaced" },
         r.nodes,
         r.dofs,
@@ -451,6 +505,7 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
         num(t.setup),
         num(t.solve),
         num(t.quality),
+        num(t.check),
         output.map(|p| format!("\"{}\"", json_escape(&p.display().to_string()))).unwrap_or("null".into())
     )
 }
