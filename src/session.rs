@@ -100,6 +100,11 @@ impl Session {
         self.report.as_ref()
     }
 
+    /// Number of cells the host gave (before boundary caps were removed).
+    pub fn n_input_cells(&self) -> usize {
+        self.input.n_cells()
+    }
+
     /// For each cell of the current mesh, its index among the cells the host
     /// gave (they differ only by the boundary caps removed).
     pub fn input_cells(&self) -> &[usize] {
