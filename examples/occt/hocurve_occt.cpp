@@ -3,7 +3,7 @@
 // entity and projecting onto it.
 //
 //   hocurve-occt MODEL.step|.brep --order P [--mesh-size H] [--curvature N] [--formulation F]
-//                [--poisson NU] [--increments N] [--threads T]
+//                [--poisson NU] [--increments N] [--threads T] [--placement parametric|closest]
 //                --output OUT.msh|.vtu [--report R.json]
 #include "occt_pipeline.hpp"
 
@@ -18,6 +18,7 @@ namespace {
 void usage() {
   std::cerr << "usage: hocurve-occt MODEL.step|.brep --order P [--mesh-size H] [--curvature N] [--formulation "
                "linear|ile|iil|cil|nonlinear] [--poisson NU] [--increments N] [--threads T] "
+               "[--placement parametric|closest] "
                "--output OUT.msh|.vtu [--report R.json]\n";
 }
 
@@ -40,7 +41,7 @@ std::string json_number(double v) {
 }  // namespace
 
 int main(int argc, char **argv) {
-  std::string model, output, report, formulation = "ile";
+  std::string model, output, report, formulation = "ile", placement = "parametric";
   int order = 0, increments = 1, threads = 0, per_2pi = 12;
   double h = 0.0, poisson = 0.3;
   for (int i = 1; i < argc; ++i) {
@@ -59,6 +60,7 @@ int main(int argc, char **argv) {
     else if (a == "--poisson") poisson = std::atof(value().c_str());
     else if (a == "--increments") increments = std::atoi(value().c_str());
     else if (a == "--threads") threads = std::atoi(value().c_str());
+    else if (a == "--placement") placement = value();
     else if (a == "--output") output = value();
     else if (a == "--report") report = value();
     else if (a == "-h" || a == "--help") {
@@ -70,7 +72,7 @@ int main(int argc, char **argv) {
       return 2;
     }
   }
-  if (model.empty() || output.empty() || order < 1) {
+  if (model.empty() || output.empty() || order < 1 || (placement != "parametric" && placement != "closest")) {
     usage();
     return 2;
   }
@@ -87,6 +89,7 @@ int main(int argc, char **argv) {
     auto t_mesh = std::chrono::steady_clock::now();
 
     occt::Projector proj;
+    proj.placement = placement == "closest" ? occt::Placement::Closest : occt::Placement::Parametric;
     hocurve::Mesh mesh = occt::make_mesh(lm, proj);
     const HocFormulation f = parse_formulation(formulation);
     // The incrementally linearised and nonlinear formulations need a hyperelastic material.
@@ -121,7 +124,8 @@ int main(int argc, char **argv) {
         << lm.edge_tags.size() << ",\n  \"min_q1\": " << json_number(q.min_q1)
         << ",\n  \"min_q2\": " << json_number(q.min_q2) << ",\n  \"min_q3\": " << json_number(q.min_q3)
         << ",\n  \"mean_q3\": " << json_number(q.mean_q3) << ",\n  \"invalid_elements\": " << q.n_invalid
-        << ",\n  \"projector_calls\": " << proj.calls << ",\n  \"seconds\": {\"total\": "
+        << ",\n  \"placement\": \"" << placement << "\",\n  \"placement_fallbacks\": "
+        << (proj.placer ? proj.placer->fallbacks : 0) << ",\n  \"projector_calls\": " << proj.calls << ",\n  \"seconds\": {\"total\": "
         << json_number(secs(t0, t_end)) << ", \"mesh\": " << json_number(secs(t0, t_mesh))
         << ", \"curve\": " << json_number(secs(t_mesh, t_curve)) << "}\n}\n";
       if (!r) throw std::runtime_error("cannot write " + report);

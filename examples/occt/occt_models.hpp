@@ -1,6 +1,7 @@
 // Test models, built with gmsh's OpenCASCADE kernel and exported to STEP (no
-// CAD file is downloaded): a filleted plate with two holes, a sphere fused
-// with a torus, and a 2D plate with a circular and an elliptic hole.
+// CAD file is downloaded): a filleted block with two holes, a torus with a
+// sphere cut out, a 2D plate with a circular and an elliptic hole, and a 2D
+// NACA 0012 aerofoil in a box.
 #ifndef HOCURVE_OCCT_MODELS_HPP
 #define HOCURVE_OCCT_MODELS_HPP
 
@@ -60,12 +61,62 @@ inline void build_plate() {
   gmsh::model::occ::synchronize();
 }
 
-// Build model `name` ("part", "sphere-torus", "plate") and write it to `path` (.step/.brep).
+// Half-thickness of the NACA 4-digit section `t` (thickness / chord) at x in
+// [0, 1], chord 1, closed trailing edge (last coefficient -0.1036: y(1) = 0).
+inline double naca_thickness(double t, double x) {
+  return 5 * t * (0.2969 * std::sqrt(x) - 0.1260 * x - 0.3516 * x * x + 0.2843 * x * x * x - 0.1036 * x * x * x * x);
+}
+
+// Camber line y_c and its slope for NACA 4-digit max camber m at position p.
+inline void naca_camber(double m, double p, double x, double &yc, double &slope) {
+  if (m == 0 || p == 0) {
+    yc = slope = 0;
+  } else if (x < p) {
+    yc = m / (p * p) * (2 * p * x - x * x);
+    slope = 2 * m / (p * p) * (p - x);
+  } else {
+    yc = m / ((1 - p) * (1 - p)) * (1 - 2 * p + 2 * p * x - x * x);
+    slope = 2 * m / ((1 - p) * (1 - p)) * (p - x);
+  }
+}
+
+// (d) 2D: a NACA 4-digit aerofoil `digits` (e.g. "0012"), chord 1, leading edge
+// at the origin, closed trailing edge, in the box [-1.5, 2.5] x [-1, 1] (z = 0).
+// The upper and the lower surface are each an OCC B-spline interpolating 41
+// points of the NACA formula (cosine spacing, so the leading edge is well
+// sampled); they meet at the leading and the trailing edge.
+inline void build_naca(const std::string &digits = "0012") {
+  if (digits.size() != 4) throw std::runtime_error("NACA 4-digit code expected, got " + digits);
+  const double m = (digits[0] - '0') / 100.0, p = (digits[1] - '0') / 10.0, t = std::stod(digits.substr(2)) / 100.0;
+  const int n = 40;
+  auto point = [&](double x, bool upper) {
+    double yc, slope;
+    naca_camber(m, p, x, yc, slope);
+    const double yt = naca_thickness(t, x), th = std::atan(slope), sg = upper ? 1 : -1;
+    return gmsh::model::occ::addPoint(x - sg * yt * std::sin(th), yc + sg * yt * std::cos(th), 0);
+  };
+  const int te = gmsh::model::occ::addPoint(1, 0, 0), le = gmsh::model::occ::addPoint(0, 0, 0);
+  std::vector<int> upper{te}, lower{le};
+  for (int i = n - 1; i >= 1; --i) upper.push_back(point(0.5 * (1 - std::cos(M_PI * i / n)), true));
+  upper.push_back(le);
+  for (int i = 1; i <= n - 1; ++i) lower.push_back(point(0.5 * (1 - std::cos(M_PI * i / n)), false));
+  lower.push_back(te);
+  const int cu = gmsh::model::occ::addSpline(upper), cl = gmsh::model::occ::addSpline(lower);
+  const int foil = gmsh::model::occ::addPlaneSurface({gmsh::model::occ::addCurveLoop({cu, cl})});
+  const int box = gmsh::model::occ::addRectangle(-1.5, -1, 0, 4, 2);
+  gmsh::vectorpair out;
+  std::vector<gmsh::vectorpair> map;
+  gmsh::model::occ::cut({{2, box}}, {{2, foil}}, out, map);
+  gmsh::model::occ::synchronize();
+}
+
+// Build model `name` ("part", "sphere-torus", "plate", "naca") and write it to `path` (.step/.brep).
 inline void write_model(const std::string &name, const std::string &path) {
   gmsh::model::add(name);
   if (name == "part") build_part();
   else if (name == "sphere-torus") build_sphere_torus();
   else if (name == "plate") build_plate();
+  else if (name == "naca") build_naca("0012");
   else throw std::runtime_error("unknown model " + name);
   gmsh::write(path);
   gmsh::model::remove();

@@ -1,15 +1,20 @@
 // Tests of the gmsh/OpenCASCADE -> hocurve pipeline.
 //
-//   occt_test write DIR                       write part.step, sphere-torus.step, plate.step
+//   occt_test write DIR                       write part.step, sphere-torus.step, plate.step, naca.step
 //   occt_test check MODEL H PMIN PMAX [N]     curve at p = PMIN..PMAX and check (table on stdout);
 //                                             N elements per 2π of curvature (default 12)
+// OCCT_PLACEMENT=closest uses closest-point projection instead of the
+// parametric placement (occt_pipeline.hpp), for comparison; OCCT_DEBUG=1
+// prints the between-node distance per CAD entity.
 //   occt_test fail MODEL H                    a projector failing on one CAD entity
 //
 // `check`: no invalid cell; every high-order node classified on a CAD face
 // (edge) lies on it to 1e-8 of the model size by gmsh::model::getClosestPoint,
 // nodes on a feature edge on its CAD curve; nodes of facets on planar CAD
 // faces stay in the facet's plane; boundary vertices do not move. It also samples the
-// curved boundary between the nodes and prints the largest distance to CAD.
+// curved boundary between the nodes and prints the largest distance to CAD;
+// with the parametric placement that distance must fall at every order and
+// by at least 100 times from PMIN to PMAX when PMAX >= PMIN + 3.
 // `fail`: the run ends with HOC_ERROR_PROJECTION and the nodes are unchanged.
 #include "occt_models.hpp"
 #include "occt_pipeline.hpp"
@@ -85,7 +90,13 @@ struct Row {
   double node_dist, sample_dist, min_q3;
   std::size_t invalid;
   double secs;
+  std::size_t fallbacks;
 };
+
+occt::Placement placement() {
+  const char *e = std::getenv("OCCT_PLACEMENT");
+  return e && std::string(e) == "closest" ? occt::Placement::Closest : occt::Placement::Parametric;
+}
 
 // One facet of the curved mesh: its vertices and the cell nodes on it.
 struct Facet {
@@ -98,6 +109,7 @@ Row curve_and_check(const occt::LinearMesh &lm, int p) {
   const int dim = lm.dim, nv = dim + 1;
   const double tol = 1e-8 * lm.size;
   occt::Projector proj;
+  proj.placement = placement();
   hocurve::Mesh mesh = occt::make_mesh(lm, proj);
   mesh.set_threads(2);
   mesh.set_order(p);
@@ -318,7 +330,8 @@ Row curve_and_check(const occt::LinearMesh &lm, int p) {
     sample_dist = std::max(sample_dist, worst);
   }
 
-  return Row{p, n_cells, n_nodes, checked, planar, node_dist, sample_dist, q.min_q3, q.n_invalid, secs};
+  return Row{p,        n_cells,  n_nodes,     checked, planar, node_dist, sample_dist,
+             q.min_q3, q.n_invalid, secs, proj.placer ? proj.placer->fallbacks : 0};
 }
 
 occt::LinearMesh load(const std::string &model, double h, int per_2pi = 12) {
@@ -333,13 +346,31 @@ int check(const std::string &model, double h, int pmin, int pmax, int per_2pi) {
   std::printf("%s: dim %d, %zu vertices, %zu cells, %zu boundary facets, %zu feature edges, size %.4g\n",
               model.c_str(), lm.dim, lm.coords.size() / lm.dim, lm.cells.size() / (lm.dim + 1),
               lm.facet_tags.size(), lm.edge_tags.size(), lm.size);
-  std::printf("%3s %7s %8s %8s %8s %12s %14s %8s %8s %8s\n", "p", "cells", "nodes", "checked", "planar",
-              "node->CAD", "between->CAD", "min Q3", "invalid", "seconds");
+  const bool parametric = placement() == occt::Placement::Parametric;
+  std::printf("placement: %s\n", parametric ? "parametric" : "closest point");
+  std::printf("%3s %7s %8s %8s %8s %12s %14s %7s %8s %8s %9s %8s\n", "p", "cells", "nodes", "checked", "planar",
+              "node->CAD", "between->CAD", "drop", "min Q3", "invalid", "fallbacks", "seconds");
+  std::vector<Row> rows;
   for (int p = pmin; p <= pmax; ++p) {
     Row r = curve_and_check(lm, p);
-    std::printf("%3d %7zu %8zu %8zu %8zu %12.3e %14.3e %8.4f %8zu %8.2f\n", r.p, r.cells, r.nodes, r.checked,
-                r.planar, r.node_dist, r.sample_dist, r.min_q3, r.invalid, r.secs);
+    char drop[16] = "-";
+    if (!rows.empty()) std::snprintf(drop, sizeof drop, "%.1f", rows.back().sample_dist / r.sample_dist);
+    std::printf("%3d %7zu %8zu %8zu %8zu %12.3e %14.3e %7s %8.4f %8zu %9zu %8.2f\n", r.p, r.cells, r.nodes, r.checked,
+                r.planar, r.node_dist, r.sample_dist, drop, r.min_q3, r.invalid, r.fallbacks, r.secs);
     std::fflush(stdout);
+    rows.push_back(r);
+  }
+  // Convergence with p on the fixed mesh (criterion 2). On a circular arc the
+  // distance falls in pairs of orders (rate h^(p+2) at even p, h^(p+1) at odd
+  // p; README), so only a fall at every order and a large overall one are asked.
+  if (parametric) {
+    for (std::size_t i = 1; i < rows.size(); ++i)
+      CHECK(rows[i].sample_dist < rows[i - 1].sample_dist, "between->CAD did not fall from p = %d (%.3g) to p = %d (%.3g)",
+            rows[i - 1].p, rows[i - 1].sample_dist, rows[i].p, rows[i].sample_dist);
+    if (pmax >= pmin + 3)
+      CHECK(rows.back().sample_dist <= 1e-2 * rows.front().sample_dist,
+            "between->CAD fell only from %.3g (p = %d) to %.3g (p = %d)", rows.front().sample_dist, pmin,
+            rows.back().sample_dist, pmax);
   }
   return 0;
 }
@@ -387,7 +418,7 @@ int main(int argc, char **argv) {
   try {
     std::string mode = argv[1];
     if (mode == "write") {
-      for (const char *name : {"part", "sphere-torus", "plate"})
+      for (const char *name : {"part", "sphere-torus", "plate", "naca"})
         occt::write_model(name, std::string(argv[2]) + "/" + name + ".step");
       rc = 0;
     } else if (mode == "check" && (argc == 6 || argc == 7)) {

@@ -7,6 +7,7 @@
 //! [`ExternalAdapter`] hands each system to a solver of the host's
 //! ([`SystemSolver`]) as a full CSR matrix.
 
+pub mod bsr;
 mod cholesky;
 mod external;
 mod iterative;

@@ -131,6 +131,19 @@ impl SymmetricOperator {
     }
 }
 
+/// A [`SymmetricOperator`] with the lower-triangle values of one matrix.
+#[derive(Clone, Copy)]
+pub struct WithValues<'a>(pub &'a SymmetricOperator, pub &'a [f64]);
+
+impl super::bsr::Operator for WithValues<'_> {
+    fn n(&self) -> usize {
+        self.0.n
+    }
+    fn apply_into(&self, x: &[f64], y: &mut [f64]) {
+        self.0.matvec_into(self.1, x, y)
+    }
+}
+
 /// xᵀy, summed per fixed chunk then in chunk order (thread-count independent).
 pub fn dot(x: &[f64], y: &[f64]) -> f64 {
     let partial: Vec<f64> =
@@ -156,14 +169,16 @@ pub struct PcgParams {
 }
 
 impl Default for PcgParams {
-    /// rtol = 1e-8: the error in the displacement is at most κ(A)·rtol relative
+    /// rtol = 1e-5. The error in the displacement is at most κ(A)·rtol relative
     /// to it in the worst case but, with a multigrid preconditioner, of the
     /// order of rtol times a small constant; the increments move nodes by a
-    /// fraction of the mesh size h, so 1e-8 leaves the node positions
-    /// accurate to about 1e-9·h — far below anything visible in the quality
-    /// or the geometry (the tests check 1e-7·h against the direct solver).
+    /// fraction of the mesh size h, so the nodes end within a few 1e-6·h of
+    /// the exact solution's (tests/solvers.rs checks 2e-5·h against the direct
+    /// solver) — far below anything visible in the quality or the geometry,
+    /// and the boundary nodes, which carry the geometry, are prescribed exactly.
+    /// 1e-8 took twice the iterations (27 against 13 at p = 4).
     fn default() -> Self {
-        PcgParams { rtol: 1e-8, max_iterations: 1000 }
+        PcgParams { rtol: 1e-5, max_iterations: 1000 }
     }
 }
 

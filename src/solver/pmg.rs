@@ -17,7 +17,8 @@
 
 use rayon::prelude::*;
 
-use super::pcg::{axpby_in_place, dot, BlockJacobi, SymmetricOperator};
+use super::bsr::Operator;
+use super::pcg::{axpby_in_place, dot, BlockJacobi, SymmetricOperator, WithValues};
 use super::{SparseCholesky, SymmetricCsc};
 use crate::{Error, Result};
 
@@ -179,14 +180,15 @@ impl Chebyshev {
         block: usize,
         params: ChebyshevParams,
     ) -> Result<Chebyshev> {
-        Self::try_new_from(op, pattern, values, block, params, None)
+        Self::try_new_from(&WithValues(op, values), pattern, values, block, params, None)
     }
 
     /// [`Self::try_new`] with the power iteration started from the dominant
     /// vector of a previous, similar matrix ([`Self::power_vector`]): then
-    /// `power_iterations / 3` steps (at least 2) suffice.
+    /// `power_iterations / 6` steps (at least 2) suffice. `op` applies the
+    /// matrix (`pattern`, `values`) or an approximation of it (single precision).
     pub fn try_new_from(
-        op: &SymmetricOperator,
+        op: &dyn Operator,
         pattern: &SymmetricCsc,
         values: &[f64],
         block: usize,
@@ -195,7 +197,7 @@ impl Chebyshev {
     ) -> Result<Chebyshev> {
         let jacobi = BlockJacobi::try_new(pattern, values, block)?;
         let n = pattern.n;
-        let steps = if start.is_some() { (params.power_iterations / 3).max(2) } else { params.power_iterations.max(1) };
+        let steps = if start.is_some() { (params.power_iterations / 6).max(2) } else { params.power_iterations.max(1) };
         let mut v = start
             .filter(|v| v.len() == n)
             .unwrap_or_else(|| (0..n).map(|i| 1.0 + 0.5 * ((i as f64) * 1.618).sin()).collect());
@@ -204,7 +206,7 @@ impl Chebyshev {
         let (mut av, mut u) = (vec![0.0; n], vec![0.0; n]);
         let mut lambda = 0.0;
         for _ in 0..steps {
-            op.matvec_into(values, &v, &mut av);
+            op.apply_into(&v, &mut av);
             jacobi.apply_into(&av, &mut u);
             lambda = dot(&u, &u).sqrt();
             if !(lambda > 0.0 && lambda.is_finite()) {
@@ -226,7 +228,7 @@ impl Chebyshev {
     }
 
     /// x = S r (Chebyshev from zero).
-    fn smooth_into(&self, op: &SymmetricOperator, values: &[f64], r: &[f64], x: &mut [f64], w: &mut SmootherWork) {
+    fn smooth_into(&self, op: &dyn Operator, r: &[f64], x: &mut [f64], w: &mut SmootherWork) {
         let hi = self.lambda_max;
         let lo = hi / self.params.ratio;
         let (theta, delta) = ((hi + lo) / 2.0, (hi - lo) / 2.0);
@@ -237,7 +239,7 @@ impl Chebyshev {
         w.d.iter_mut().for_each(|v| *v /= theta);
         x.copy_from_slice(&w.d);
         for _ in 1..self.params.degree {
-            op.matvec_into(values, &w.d, &mut w.t);
+            op.apply_into(&w.d, &mut w.t);
             axpby_in_place(-1.0, &w.t, 1.0, &mut w.res);
             self.jacobi.apply_into(&w.res, &mut w.z);
             let rho_new = 1.0 / (2.0 * sigma - rho);
@@ -363,7 +365,7 @@ impl Hierarchy {
             return chol.try_solve_in_place(factor, &mut l.x);
         }
         let smoother = l.smoother.as_ref().ok_or_else(|| Error::Solver("p-multigrid level not set up".into()))?;
-        smoother.smooth_into(&l.op, &l.values, &l.rhs, &mut l.x, &mut l.work);
+        smoother.smooth_into(&WithValues(&l.op, &l.values), &l.rhs, &mut l.x, &mut l.work);
         l.op.matvec_into(&l.values, &l.x, &mut l.s);
         axpby_in_place(1.0, &l.rhs, -1.0, &mut l.s);
         let next = &mut below[0];
@@ -376,17 +378,17 @@ impl Hierarchy {
         l.op.matvec_into(&l.values, &l.x, &mut l.s);
         axpby_in_place(1.0, &l.rhs, -1.0, &mut l.s);
         let smoother = l.smoother.as_ref().expect("checked above");
-        smoother.smooth_into(&l.op, &l.values, &l.s, &mut l.e, &mut l.work);
+        smoother.smooth_into(&WithValues(&l.op, &l.values), &l.s, &mut l.e, &mut l.work);
         axpby_in_place(1.0, &l.e, 1.0, &mut l.x);
         Ok(())
     }
 }
 
-/// The p-multigrid V-cycle z = B r for the fine matrix (`op`, `values`):
-/// smoothing with `smoother` on the fine level, the coarse levels of `coarse`.
+/// The p-multigrid V-cycle z = B r for the fine matrix applied by `op` (the
+/// matrix itself or a single-precision copy): smoothing with `smoother` on the
+/// fine level, the coarse levels of `coarse`.
 pub struct VCycle<'a> {
-    op: &'a SymmetricOperator,
-    values: &'a [f64],
+    op: &'a dyn Operator,
     smoother: &'a Chebyshev,
     coarse: Option<&'a mut Hierarchy>,
     work: SmootherWork,
@@ -395,23 +397,18 @@ pub struct VCycle<'a> {
 }
 
 impl<'a> VCycle<'a> {
-    pub fn new(
-        op: &'a SymmetricOperator,
-        values: &'a [f64],
-        smoother: &'a Chebyshev,
-        coarse: Option<&'a mut Hierarchy>,
-    ) -> VCycle<'a> {
+    pub fn new(op: &'a dyn Operator, smoother: &'a Chebyshev, coarse: Option<&'a mut Hierarchy>) -> VCycle<'a> {
         let n = op.n();
         let coarse = coarse.filter(|c| !c.levels.is_empty() && c.levels.iter().all(|l| l.pattern.n > 0));
         let v = || vec![0.0; n];
         let work = SmootherWork { res: v(), d: v(), t: v(), z: v() };
-        VCycle { op, values, smoother, coarse, work, s: v(), e: v() }
+        VCycle { op, smoother, coarse, work, s: v(), e: v() }
     }
 
     /// z = B r.
     pub fn apply_into(&mut self, r: &[f64], z: &mut [f64]) -> Result<()> {
-        let (op, values) = (self.op, self.values);
-        self.smoother.smooth_into(op, values, r, z, &mut self.work);
+        let op = self.op;
+        self.smoother.smooth_into(op, r, z, &mut self.work);
         let Some(coarse) = self.coarse.as_deref_mut() else {
             return Ok(());
         };
@@ -419,7 +416,7 @@ impl<'a> VCycle<'a> {
             return Err(Error::Solver("p-multigrid hierarchy not set up".into()));
         }
         // s = r − A z; z += P B_1 Pᵀ s
-        op.matvec_into(values, z, &mut self.s);
+        op.apply_into(z, &mut self.s);
         axpby_in_place(1.0, r, -1.0, &mut self.s);
         {
             let l = &mut coarse.levels[0];
@@ -430,9 +427,9 @@ impl<'a> VCycle<'a> {
         l.p.matvec_into(&l.x, &mut self.e);
         axpby_in_place(1.0, &self.e, 1.0, z);
         // z += S (r − A z)
-        op.matvec_into(values, z, &mut self.s);
+        op.apply_into(z, &mut self.s);
         axpby_in_place(1.0, r, -1.0, &mut self.s);
-        self.smoother.smooth_into(op, values, &self.s, &mut self.e, &mut self.work);
+        self.smoother.smooth_into(op, &self.s, &mut self.e, &mut self.work);
         axpby_in_place(1.0, &self.e, 1.0, z);
         Ok(())
     }
