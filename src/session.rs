@@ -197,6 +197,13 @@ impl Session {
                     self.input.n_cells()
                 )));
             }
+            // Checked here, not only at the run, so the call that set them fails.
+            if let Some(c) = f.iter().position(|v| {
+                let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+                !(n.is_finite() && n > 0.0)
+            }) {
+                return Err(Error::InvalidInput(format!("fibre direction of cell {c} is zero or not finite")));
+            }
         }
         self.opts.fibres = fibres;
         Ok(())

@@ -64,3 +64,28 @@ fn fibres_can_be_set_on_a_mesh_whose_caps_were_removed() {
         hoc_mesh_destroy(&mut m);
     }
 }
+
+/// A zero or non-finite fibre direction was accepted by hoc_mesh_set_fibres
+/// and only rejected by the next run (found by c_tests/t700-catalogue): the
+/// call that set it must fail, and leave the earlier fibres in place.
+#[test]
+fn zero_or_non_finite_fibres_are_rejected_when_set() {
+    let good = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+    unsafe {
+        let mut m = null_mut();
+        assert_eq!(hoc_mesh_create(2, 4, SQ.as_ptr(), 2, SQ_CELLS.as_ptr(), &mut m), HOC_OK);
+        assert_eq!(hoc_mesh_set_fibres(m, 2, good.as_ptr()), HOC_OK);
+        for (k, bad) in
+            [[0.0; 3], [f64::NAN, 0.0, 0.0], [f64::INFINITY, 0.0, 0.0], [1e200, 1e200, 0.0]].into_iter().enumerate()
+        {
+            let f = [good[0], good[1], good[2], bad[0], bad[1], bad[2]];
+            assert_eq!(hoc_mesh_set_fibres(m, 2, f.as_ptr()), HOC_ERROR_INVALID_ARGUMENT, "case {k}");
+            assert!(last_error(m).contains("fibre direction of cell 1 is zero or not finite"), "{}", last_error(m));
+        }
+        // The good fibres are still set: a transversely isotropic run works.
+        assert_eq!(hoc_mesh_set_material(m, HOC_MATERIAL_TRANSVERSELY_ISOTROPIC_LINEAR, 1.0, 0.3), HOC_OK);
+        assert_eq!(hoc_mesh_set_order(m, 2, HOC_SPACING_OPTIMAL), HOC_OK);
+        assert_eq!(hoc_mesh_run_increments(m, 1), HOC_OK, "{}", last_error(m));
+        hoc_mesh_destroy(&mut m);
+    }
+}
