@@ -304,9 +304,9 @@ extern "C" {
  * (`dim` = 3) mesh. Cells with negative orientation are reoriented.
  *
  * @param[in] dim 2 or 3
- * @param[in] n_vertices number of vertices
+ * @param[in] n_vertices number of vertices (at most 2^32 − 1)
  * @param[in] coords `n_vertices * dim` interleaved coordinates
- * @param[in] n_cells number of cells (at least 1)
+ * @param[in] n_cells number of cells (at least 1, at most 2^32 − 1)
  * @param[in] cells `n_cells * (dim + 1)` 0-based vertex indices
  * @param[out] out the new handle (set to NULL on failure)
  * @return HOC_OK, HOC_ERROR_NULL_POINTER, HOC_ERROR_INVALID_ARGUMENT or HOC_ERROR_INVALID_MESH
@@ -326,7 +326,7 @@ HocStatus hoc_mesh_destroy(HocMesh **mesh);
  * tags; replaces earlier tags. Untagged boundary stays straight.
  *
  * @param[in,out] mesh the handle
- * @param[in] n_facets number of facets
+ * @param[in] n_facets number of facets (at most 2^32 − 1)
  * @param[in] facets `n_facets * dim` vertex indices
  * @param[in] entity_tags `n_facets` tags
  * @return HOC_OK, or HOC_ERROR_INVALID_MESH if a facet is not on the boundary or is tagged twice
@@ -338,7 +338,7 @@ HocStatus hoc_mesh_set_boundary(HocMesh *mesh, size_t n_facets, const int64_t *f
  * their high-order nodes are projected onto the curve.
  *
  * @param[in,out] mesh the handle
- * @param[in] n_edges number of edges
+ * @param[in] n_edges number of edges (at most 2^32 − 1)
  * @param[in] edges `2 * n_edges` vertex indices
  * @param[in] curve_tags `n_edges` tags
  * @return HOC_OK, or HOC_ERROR_INVALID_MESH if an edge is not on the boundary
@@ -466,10 +466,13 @@ HocStatus hoc_mesh_set_adaptive_stepping(HocMesh *mesh, int enabled, int max_spl
 /**
  * Fibre direction of every cell for the transversely isotropic materials
  * (3 doubles per cell, also in 2D; normalised by hocurve). NULL restores the
- * default: −x inside, tangent to the boundary on boundary cells.
+ * default: −x inside, tangent to the boundary on boundary cells. One
+ * direction per cell given to hoc_mesh_create, in that order, also when
+ * boundary caps are removed (the cells that remain keep theirs; see
+ * hoc_mesh_get_input_cells).
  *
  * @param[in,out] mesh the handle
- * @param[in] n_cells must equal the number of cells (ignored when `fibres` is NULL)
+ * @param[in] n_cells must equal the number of cells given to hoc_mesh_create (ignored when `fibres` is NULL)
  * @param[in] fibres `3 * n_cells` doubles, or NULL
  * @return HOC_OK, HOC_ERROR_BUFFER_SIZE or HOC_ERROR_INVALID_ARGUMENT
  */

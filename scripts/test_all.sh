@@ -7,8 +7,12 @@
 #                                 hocurve writes; quality agrees with gmsh)
 #   4. scripts/test_c.sh         (install into a temp prefix; C, C++, Fortran
 #                                 tests on TetGen/CGAL meshes via find_package;
-#                                 ctest, then the same under valgrind)
-# Steps 2-4 all run even if one fails; the exit status is non-zero if
+#                                 ctest, then the same under valgrind and under
+#                                 AddressSanitizer + UBSan + LeakSanitizer)
+#   5. scripts/fuzz.sh           (cargo-fuzz: the .msh reader and the C ABI call
+#                                 sequence, HOCURVE_FUZZ_SECONDS each, default
+#                                 60; HOCURVE_SKIP_FUZZ=1 skips it)
+# Steps 2-5 all run even if one fails; the exit status is non-zero if
 # anything failed. The Python venv is made (or reused) by setup_python.sh.
 set -uo pipefail
 
@@ -53,8 +57,16 @@ step "C, C++ and Fortran tests (scripts/test_c.sh)"
 "$repo/scripts/test_c.sh"
 c_rc=$?
 
+fuzz_rc=0
+if [ "${HOCURVE_SKIP_FUZZ:-0}" != 1 ]; then
+    step "fuzzing (scripts/fuzz.sh ${HOCURVE_FUZZ_SECONDS:-60})"
+    "$repo/scripts/fuzz.sh" "${HOCURVE_FUZZ_SECONDS:-60}"
+    fuzz_rc=$?
+fi
+
 step "summary"
 echo "cargo test: $([ $cargo_rc -eq 0 ] && echo ok || echo "FAILED (exit $cargo_rc)")"
 echo "pytest:     $([ $py_rc -eq 0 ] && echo ok || echo "FAILED (exit $py_rc)")"
 echo "C tests:    $([ $c_rc -eq 0 ] && echo ok || echo "FAILED (exit $c_rc)")"
-[ "$cargo_rc" -eq 0 ] && [ "$py_rc" -eq 0 ] && [ "$c_rc" -eq 0 ]
+echo "fuzzing:    $([ "${HOCURVE_SKIP_FUZZ:-0}" = 1 ] && echo skipped || { [ $fuzz_rc -eq 0 ] && echo ok || echo "FAILED (exit $fuzz_rc)"; })"
+[ "$cargo_rc" -eq 0 ] && [ "$py_rc" -eq 0 ] && [ "$c_rc" -eq 0 ] && [ "$fuzz_rc" -eq 0 ]

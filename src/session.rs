@@ -100,6 +100,11 @@ impl Session {
         self.report.as_ref()
     }
 
+    /// Number of cells the host gave (before boundary caps were removed).
+    pub fn n_input_cells(&self) -> usize {
+        self.input.n_cells()
+    }
+
     /// For each cell of the current mesh, its index among the cells the host
     /// gave (they differ only by the boundary caps removed).
     pub fn input_cells(&self) -> &[usize] {
@@ -207,6 +212,13 @@ impl Session {
                     f.len(),
                     self.input.n_cells()
                 )));
+            }
+            // Checked here, not only at the run, so the call that set them fails.
+            if let Some(c) = f.iter().position(|v| {
+                let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+                !(n.is_finite() && n > 0.0)
+            }) {
+                return Err(Error::InvalidInput(format!("fibre direction of cell {c} is zero or not finite")));
             }
         }
         self.opts.fibres = fibres;

@@ -285,6 +285,20 @@ fn indices(v: &[i64], what: &str) -> std::result::Result<Vec<usize>, (HocStatus,
         .collect()
 }
 
+/// The largest count of vertices, cells, facets or edges a call takes
+/// (2^32 − 1). A count is checked against it before the array it describes
+/// is read or copied, so an absurd count (2^40 nodes) fails with
+/// `HOC_ERROR_INVALID_ARGUMENT` instead of reading past the caller's buffer or
+/// aborting in the allocator.
+const MAX_COUNT: usize = u32::MAX as usize;
+
+fn checked_count(n: usize, what: &str) -> std::result::Result<usize, (HocStatus, String)> {
+    if n > MAX_COUNT {
+        return Err(arg(format!("{what} = {n} is too large (hocurve takes at most {MAX_COUNT})")));
+    }
+    Ok(n)
+}
+
 fn checked_mul(a: usize, b: usize, what: &str) -> std::result::Result<usize, (HocStatus, String)> {
     a.checked_mul(b).ok_or_else(|| arg(format!("{what}: size overflows")))
 }
@@ -301,9 +315,9 @@ unsafe fn handle<'a>(mesh: *const HocMesh) -> std::result::Result<&'a HocMesh, (
 /// (`dim` = 3) mesh. Cells with negative orientation are reoriented.
 ///
 /// @param[in] dim 2 or 3
-/// @param[in] n_vertices number of vertices
+/// @param[in] n_vertices number of vertices (at most 2^32 − 1)
 /// @param[in] coords `n_vertices * dim` interleaved coordinates
-/// @param[in] n_cells number of cells (at least 1)
+/// @param[in] n_cells number of cells (at least 1, at most 2^32 − 1)
 /// @param[in] cells `n_cells * (dim + 1)` 0-based vertex indices
 /// @param[out] out the new handle (set to NULL on failure)
 /// @return HOC_OK, HOC_ERROR_NULL_POINTER, HOC_ERROR_INVALID_ARGUMENT or HOC_ERROR_INVALID_MESH
@@ -329,6 +343,8 @@ pub unsafe extern "C" fn hoc_mesh_create(
         if n_cells == 0 {
             return Err((HOC_ERROR_INVALID_MESH, "the mesh has no cells".into()));
         }
+        let n_vertices = checked_count(n_vertices, "n_vertices")?;
+        let n_cells = checked_count(n_cells, "n_cells")?;
         let coords = slice(coords, checked_mul(n_vertices, d, "coords")?, "coords")?.to_vec();
         let cells = indices(slice(cells, checked_mul(n_cells, d + 1, "cells")?, "cells")?, "cells")?;
         let linear = LinearMesh { dim: d, coords, cells, ..Default::default() };
@@ -361,7 +377,7 @@ pub unsafe extern "C" fn hoc_mesh_destroy(mesh: *mut *mut HocMesh) -> HocStatus 
 /// tags; replaces earlier tags. Untagged boundary stays straight.
 ///
 /// @param[in,out] mesh the handle
-/// @param[in] n_facets number of facets
+/// @param[in] n_facets number of facets (at most 2^32 − 1)
 /// @param[in] facets `n_facets * dim` vertex indices
 /// @param[in] entity_tags `n_facets` tags
 /// @return HOC_OK, or HOC_ERROR_INVALID_MESH if a facet is not on the boundary or is tagged twice
@@ -375,6 +391,7 @@ pub unsafe extern "C" fn hoc_mesh_set_boundary(
     guard(mesh, || {
         let h = handle_mut(mesh)?;
         let d = h.session.dim();
+        let n_facets = checked_count(n_facets, "n_facets")?;
         let f = indices(slice(facets, checked_mul(n_facets, d, "facets")?, "facets")?, "facets")?;
         let t = slice(entity_tags, n_facets, "entity_tags")?.to_vec();
         h.session.set_boundary(f, t).map_err(mesh_err)
@@ -385,7 +402,7 @@ pub unsafe extern "C" fn hoc_mesh_set_boundary(
 /// their high-order nodes are projected onto the curve.
 ///
 /// @param[in,out] mesh the handle
-/// @param[in] n_edges number of edges
+/// @param[in] n_edges number of edges (at most 2^32 − 1)
 /// @param[in] edges `2 * n_edges` vertex indices
 /// @param[in] curve_tags `n_edges` tags
 /// @return HOC_OK, or HOC_ERROR_INVALID_MESH if an edge is not on the boundary
@@ -398,6 +415,7 @@ pub unsafe extern "C" fn hoc_mesh_set_feature_edges(
 ) -> HocStatus {
     guard(mesh, || {
         let h = handle_mut(mesh)?;
+        let n_edges = checked_count(n_edges, "n_edges")?;
         let e = indices(slice(edges, checked_mul(n_edges, 2, "edges")?, "edges")?, "edges")?;
         let t = slice(curve_tags, n_edges, "curve_tags")?.to_vec();
         h.session.set_feature_edges(e, t).map_err(mesh_err)
@@ -730,10 +748,13 @@ pub unsafe extern "C" fn hoc_mesh_set_adaptive_stepping(
 
 /// Fibre direction of every cell for the transversely isotropic materials
 /// (3 doubles per cell, also in 2D; normalised by hocurve). NULL restores the
-/// default: −x inside, tangent to the boundary on boundary cells.
+/// default: −x inside, tangent to the boundary on boundary cells. One
+/// direction per cell given to hoc_mesh_create, in that order, also when
+/// boundary caps are removed (the cells that remain keep theirs; see
+/// hoc_mesh_get_input_cells).
 ///
 /// @param[in,out] mesh the handle
-/// @param[in] n_cells must equal the number of cells (ignored when `fibres` is NULL)
+/// @param[in] n_cells must equal the number of cells given to hoc_mesh_create (ignored when `fibres` is NULL)
 /// @param[in] fibres `3 * n_cells` doubles, or NULL
 /// @return HOC_OK, HOC_ERROR_BUFFER_SIZE or HOC_ERROR_INVALID_ARGUMENT
 #[no_mangle]
@@ -743,9 +764,14 @@ pub unsafe extern "C" fn hoc_mesh_set_fibres(mesh: *mut HocMesh, n_cells: usize,
         if fibres.is_null() {
             return h.session.set_fibres(None).map_err(err);
         }
-        let nc = h.session.mesh().n_cells();
+        // One fibre per cell given to hoc_mesh_create: the current mesh has
+        // fewer when boundary caps were removed.
+        let nc = h.session.n_input_cells();
         if n_cells != nc {
-            return Err((HOC_ERROR_BUFFER_SIZE, format!("n_cells = {n_cells}, but the mesh has {nc} cells")));
+            return Err((
+                HOC_ERROR_BUFFER_SIZE,
+                format!("n_cells = {n_cells}, but the mesh was created with {nc} cells"),
+            ));
         }
         let f = slice(fibres, checked_mul(n_cells, 3, "fibres")?, "fibres")?;
         h.session.set_fibres(Some(f.chunks_exact(3).map(|v| [v[0], v[1], v[2]]).collect())).map_err(err)

@@ -89,7 +89,14 @@ pub fn to_linear_mesh(msh: &MshContent) -> Result<LinearMesh> {
     } else if msh.blocks.iter().any(|b| b.element_type == 2) {
         2
     } else {
-        return Err(Error::Io("no linear triangles (type 2) or tetrahedra (type 4) in the mesh".into()));
+        let found = match msh.blocks.iter().max_by_key(|b| b.entity_dim) {
+            Some(b) if b.entity_dim >= 2 => format!(
+                " (found element type {} on entity {}: the mesh to curve must be linear simplices only)",
+                b.element_type, b.entity_tag
+            ),
+            _ => String::new(),
+        };
+        return Err(Error::Io(format!("no linear triangles (type 2) or tetrahedra (type 4) in the mesh{found}")));
     };
     let (cell_type, facet_type) = if dim == 3 { (4, 2) } else { (2, 1) };
     let mut cells = Vec::new();
@@ -353,7 +360,7 @@ impl<'a> Parser<'a> {
             return self.bin_size_t(b, what);
         }
         let t = self.expect(what)?;
-        t.parse().map_err(|_| self.err(format!("expected {what} (an unsigned integer), found '{t}'")))
+        t.parse().map_err(|_| self.err(format!("expected {what} (an unsigned integer), found '{t}'{}", early_end(t))))
     }
 
     fn i32(&mut self, what: &str) -> Result<i32> {
@@ -362,7 +369,7 @@ impl<'a> Parser<'a> {
             return Ok(if b.little { i32::from_le_bytes(bytes) } else { i32::from_be_bytes(bytes) });
         }
         let t = self.expect(what)?;
-        t.parse().map_err(|_| self.err(format!("expected {what} (an integer), found '{t}'")))
+        t.parse().map_err(|_| self.err(format!("expected {what} (an integer), found '{t}'{}", early_end(t))))
     }
 
     fn f64(&mut self, what: &str) -> Result<f64> {
@@ -375,7 +382,7 @@ impl<'a> Parser<'a> {
             }
         } else {
             let t = self.expect(what)?;
-            t.parse().map_err(|_| self.err(format!("expected {what} (a number), found '{t}'")))?
+            t.parse().map_err(|_| self.err(format!("expected {what} (a number), found '{t}'{}", early_end(t))))?
         };
         if x.is_finite() {
             Ok(x)
@@ -539,7 +546,8 @@ impl<'a> Parser<'a> {
             for _ in 0..n {
                 let tag = self.usize("a node tag")?;
                 if tag == 0 {
-                    return Err(self.err("node tag 0 (tags start at 1)"));
+                    return Err(self
+                        .err("node tag 0: tags start at 1 (or the block header announces more nodes than it holds)"));
                 }
                 tags.push(tag);
             }
@@ -600,6 +608,16 @@ impl<'a> Parser<'a> {
             return Err(self.err(format!("the header announces {n_elements} elements, the blocks hold {total}")));
         }
         self.expect_exact("$EndElements")
+    }
+}
+
+/// A hint for a number that is a section marker: the section ended before
+/// its counts said it would.
+fn early_end(token: &str) -> &'static str {
+    if token.starts_with('$') {
+        " (the section ends early: wrong counts?)"
+    } else {
+        ""
     }
 }
 

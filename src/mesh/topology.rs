@@ -44,7 +44,8 @@ pub fn signed_measure(dim: usize, x: &[[f64; 3]]) -> f64 {
 /// Rejects: dimension other than 2 or 3, inconsistent array lengths,
 /// non-finite coordinates, no cells, out-of-range or repeated vertex indices,
 /// duplicate cells, degenerate cells (|measure| ≤ 1e-12 · h^dim with h the
-/// longest edge of the cell), tags count mismatch.
+/// longest edge of the cell), cells so large that their size or measure
+/// overflows, tags count mismatch.
 /// Cells with negative orientation are reoriented by swapping their last two vertices.
 pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
     let dim = mesh.dim;
@@ -112,6 +113,11 @@ pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
             }
         }
         let m = signed_measure(dim, &x);
+        if !(h2.is_finite() && m.is_finite()) {
+            return Err(Error::InvalidInput(format!(
+                "cell {c} is too large: its size or measure overflows double precision (scale the mesh down)"
+            )));
+        }
         if m.abs() <= 1e-12 * h2.sqrt().powi(dim as i32) {
             return Err(Error::InvalidInput(format!("cell {c} is degenerate (zero measure)")));
         }
@@ -266,6 +272,11 @@ mod tests {
         let mut m = two_triangles();
         m.coords[3] = f64::NAN;
         assert!(validate_and_orient(&m).is_err());
+        // Coordinates so large that the measure overflows (inf − inf = NaN here): not "valid".
+        let mut m = two_triangles();
+        m.coords = vec![0.0, 0.0, 1e300, 1e300, 1e300, 2e300, 0.0, 1.0];
+        m.cells = vec![0, 1, 2];
+        assert!(matches!(validate_and_orient(&m), Err(Error::InvalidInput(s)) if s.contains("too large")));
         let mut m = two_triangles();
         m.cells = vec![0, 1, 2, 2, 1, 0];
         assert!(matches!(validate_and_orient(&m), Err(Error::InvalidInput(s)) if s.contains("same vertices")));
