@@ -357,7 +357,7 @@ pub fn curve(
     let ti = opts.material.is_transversely_isotropic().then_some(&fibres[..]);
     let cell_quality = quality::cell_qualities(&quality::sampling_cache(&basis), &mesh.coords, &mesh.cells, ti);
     let mut q = quality::summarize(&cell_quality);
-    if let Some(certified) = quality::certify_cells(&basis, &mesh.coords, &mesh.cells) {
+    if let Some(certified) = solved.certified.or_else(|| quality::certify_cells(&basis, &mesh.coords, &mesh.cells)) {
         quality::add_certified(&mut q, &certified);
     }
     timings.quality = t.elapsed().as_secs_f64();
@@ -480,6 +480,9 @@ pub struct IncrementsReport {
     pub load_fractions: Vec<f64>,
     /// The increments rejected by adaptive load stepping, in order.
     pub step_backs: Vec<StepBack>,
+    /// Certified bounds of every cell on the geometry the run ended with,
+    /// when its last check was the certified one.
+    pub certified: Option<Vec<quality::CertifiedJacobian>>,
 }
 
 impl IncrementsReport {
@@ -845,7 +848,14 @@ impl<K: ElementKernel> IncrementContext<'_, K> {
         // Only a cell that this increment made invalid rejects it; one that
         // was already invalid at its start is returned to the caller.
         let (mut new, mut old) = (None, None);
-        for c in check.invalid_cells(&mesh.coords, &mesh.cells, certified) {
+        // Certified: the bounds of every cell are kept for the quality stage,
+        // which would otherwise compute them again on the final mesh.
+        out.certified = if certified { check.certify_cells(&mesh.coords, &mesh.cells) } else { None };
+        let invalid: Vec<usize> = match &out.certified {
+            Some(cells) => (0..cells.len()).filter(|&c| cells[c].verdict == quality::Verdict::Invalid).collect(),
+            None => check.invalid_cells(&mesh.coords, &mesh.cells, certified),
+        };
+        for c in invalid {
             if check.cell_is_invalid(saved, mesh.cell(c), certified) {
                 old = old.or(Some(c));
             } else {

@@ -252,6 +252,13 @@ impl ValidityCheck {
         }
     }
 
+    /// The certified bounds of every cell ([`certify_cells`]); None above the
+    /// certified check's order limit.
+    pub fn certify_cells(&self, coords: &[f64], cells: &[usize]) -> Option<Vec<CertifiedJacobian>> {
+        self.certified.as_ref()?;
+        certify_cells(&self.basis, coords, cells)
+    }
+
     /// Indices of the invalid cells of the mesh (`coords`, `cells`), in order.
     pub fn invalid_cells(&self, coords: &[f64], cells: &[usize], certified: bool) -> Vec<usize> {
         let dim = self.basis.simplex().dim();
