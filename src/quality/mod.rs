@@ -114,7 +114,12 @@ pub fn element_quality(cache: &ElementCache, xe: &[f64], fibre: Option<&[f64; 3]
                 i2 += h[i][j] * h[i][j];
             }
         }
-        let j = mapping::det(dim, &f);
+        // Q3 from det ∂x/∂ξ itself: the scaled Jacobian is a ratio, so the
+        // affine factor of the vertices cancels, and it must not set the sign:
+        // an interior vertex moved by the curving (one that a removed boundary
+        // cap added) can leave the vertices' straight tet inverted under an
+        // element that is valid everywhere.
+        let j = mapping::det(dim, &dxdxi);
         if let Some(n) = fibre {
             // I4 = FN·FN, I5 = FᵀFN·FᵀFN (2D: in-plane part of N; F33 = 1).
             let mut fn_ = [0.0; 3];
