@@ -123,14 +123,22 @@ def test_tet_with_all_vertices_on_sphere_is_reported_invalid(gmsh, hocurve, tmp_
     """Box [-1,1]^3, h = 0.5: gmsh puts one tet with all four vertices on the sphere.
 
     With all its vertices and edges on the sphere such a tet has no interior
-    freedom and folds at p = 2 (a known limit of a posteriori curving; issue 7
-    adds adaptive stepping). hocurve must not hide it: its report counts the
-    same invalid element(s) that gmsh finds.
+    freedom and folds at p = 2 (a known limit of a posteriori curving) whatever
+    the load step. hocurve must not hide it: with adaptive stepping (the
+    default) the run fails at the split limit, saying so, and writes nothing;
+    with it off, the mesh comes back and its report counts the same invalid
+    element(s) that gmsh finds.
     """
     p = 2
     src, geometry, _f, _h = linear_case(gmsh, 3, tmp_path, h=0.5, half=1.0)
     out, rep = tmp_path / "out.msh", tmp_path / "r.json"
-    r = hocurve.curve(src, p, geometry, out, rep)
+    args = ["curve", src, "--order", p, "--output", out, "--report", rep]
+    for g in geometry:
+        args += ["--geometry", g]
+    failed = hocurve.run(*args, "--max-splits", 2)
+    assert failed.returncode != 0 and "inverted" in failed.stderr and "adaptive" in failed.stderr, failed.stderr
+    assert not out.exists() and not rep.exists()
+    r = hocurve.curve(src, p, geometry, out, rep, "--adaptive", "off")
     gmsh.clear()
     gmsh.open(str(out))
     etype, _e, _c = M.cells(gmsh, 3)
