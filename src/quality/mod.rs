@@ -179,18 +179,26 @@ pub fn cell_qualities(
     cells: &[usize],
     fibres: Option<&[[f64; 3]]>,
 ) -> Vec<ElementQuality> {
-    let dim = cache.dim;
-    let npc = cache.n_basis;
+    map_cells(coords, cells, cache.n_basis, cache.dim, |c, xe| element_quality(cache, xe, fibres.map(|f| &f[c])))
+}
+
+/// `f(c, xe)` for every cell c (in parallel, in order), xe being its node
+/// coordinates gathered from `coords`.
+fn map_cells<T: Send>(
+    coords: &[f64],
+    cells: &[usize],
+    npc: usize,
+    dim: usize,
+    f: impl Fn(usize, &[f64]) -> T + Sync + Send,
+) -> Vec<T> {
     cells
         .par_chunks_exact(npc)
         .enumerate()
         .map_init(
             || vec![0.0; npc * dim],
             |xe, (c, cell)| {
-                for (a, &n) in cell.iter().enumerate() {
-                    xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
-                }
-                element_quality(cache, xe, fibres.map(|f| &f[c]))
+                gather_into(coords, cell, dim, xe);
+                f(c, xe)
             },
         )
         .collect()
@@ -200,22 +208,7 @@ pub fn cell_qualities(
 /// expansion limit ([`certified::MAX_LATTICE_POINTS`]).
 pub fn certify_cells(basis: &LagrangeBasis, coords: &[f64], cells: &[usize]) -> Option<Vec<CertifiedJacobian>> {
     let jb = JacobianBernstein::new(basis)?;
-    let dim = basis.simplex().dim();
-    let npc = basis.len();
-    Some(
-        cells
-            .par_chunks_exact(npc)
-            .map_init(
-                || vec![0.0; npc * dim],
-                |xe, cell| {
-                    for (a, &n) in cell.iter().enumerate() {
-                        xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
-                    }
-                    jb.certify(basis, xe)
-                },
-            )
-            .collect(),
-    )
+    Some(map_cells(coords, cells, basis.len(), basis.simplex().dim(), |_, xe| jb.certify(basis, xe)))
 }
 
 /// The checks of adaptive load stepping after an increment ([`crate::curve`]).
@@ -266,18 +259,9 @@ impl ValidityCheck {
 
     /// Indices of the invalid cells of the mesh (`coords`, `cells`), in order.
     pub fn invalid_cells(&self, coords: &[f64], cells: &[usize], certified: bool) -> Vec<usize> {
-        let dim = self.basis.simplex().dim();
-        let npc = self.basis.len();
-        cells
-            .par_chunks_exact(npc)
-            .enumerate()
-            .map_init(
-                || vec![0.0; npc * dim],
-                |xe, (c, cell)| {
-                    gather_into(coords, cell, dim, xe);
-                    self.element_is_invalid(xe, certified).then_some(c)
-                },
-            )
+        let (npc, dim) = (self.basis.len(), self.basis.simplex().dim());
+        map_cells(coords, cells, npc, dim, |c, xe| self.element_is_invalid(xe, certified).then_some(c))
+            .into_iter()
             .flatten()
             .collect()
     }
