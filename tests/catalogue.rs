@@ -134,7 +134,7 @@ fn edit(base: &str, from: &str, to: &str) -> Vec<u8> {
 
 /// The bytes of `base` up to (not including) the first occurrence of `marker`.
 fn cut_before(base: &str, marker: &str) -> Vec<u8> {
-    base[..base.find(marker).expect("marker in base")].as_bytes().to_vec()
+    base.as_bytes()[..base.find(marker).expect("marker in base")].to_vec()
 }
 
 /// A binary MSH 4.1 file of two tets sharing a face (nodes 1..5) and one
