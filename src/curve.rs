@@ -99,6 +99,10 @@ pub struct CurveOptions {
     /// Adaptive load stepping: halvings allowed per nominal increment, at most
     /// [`MAX_SPLITS`] (default [`DEFAULT_MAX_SPLITS`] = 6: down to 1/64 of a step).
     pub max_splits: usize,
+    /// Static condensation of the cell-interior nodes (eliminated cell by
+    /// cell, [`crate::assembly::condense`]): the linear systems only hold the
+    /// vertex, edge and face nodes. None (default): [`condense_by_default`].
+    pub condense: Option<bool>,
 }
 
 impl CurveOptions {
@@ -128,6 +132,7 @@ impl Default for CurveOptions {
             remove_caps: true,
             adaptive: None,
             max_splits: DEFAULT_MAX_SPLITS,
+            condense: None,
         }
     }
 }
@@ -183,8 +188,11 @@ pub struct CurveReport {
     /// Increments rejected and split by adaptive load stepping.
     pub step_backs: Vec<StepBack>,
     pub nodes: usize,
-    /// Unknowns of the linear system (free degrees of freedom).
+    /// Unknowns: the free degrees of freedom.
     pub dofs: usize,
+    /// Unknowns of the linear systems: `dofs` less the cell-interior ones
+    /// when they are condensed ([`CurveOptions::condense`]).
+    pub system_dofs: usize,
     pub cells: usize,
     /// Cells whose input orientation was negative and was flipped.
     pub reoriented_cells: usize,
@@ -326,6 +334,7 @@ pub fn curve(
         solver: opts.solver.clone(),
         adaptive: opts.adaptive_enabled(),
         max_splits: opts.max_splits,
+        condense: opts.condense.unwrap_or_else(|| condense_by_default(dim, opts.order)),
     };
     let mode = match opts.formulation {
         Formulation::Cil | Formulation::Nonlinear => TangentMode::Consistent,
@@ -375,6 +384,7 @@ pub fn curve(
         step_backs: solved.step_backs,
         nodes: mesh.n_nodes(),
         dofs: solved.n_free,
+        system_dofs: solved.n_system,
         cells: mesh.n_cells(),
         reoriented_cells: reoriented,
         removed_caps: n_input_cells - input_cell.len(),
@@ -407,6 +417,8 @@ pub struct Stepping {
     /// Adaptive load stepping: at most this many halvings, so the smallest
     /// step is 1/(n·2^max_splits) of the load.
     pub max_splits: usize,
+    /// Condense the cell-interior nodes out of the linear systems.
+    pub condense: bool,
 }
 
 impl Stepping {
@@ -420,6 +432,7 @@ impl Stepping {
             solver: SolverChoice::Auto,
             adaptive: true,
             max_splits: DEFAULT_MAX_SPLITS,
+            condense: false,
         }
     }
 }
@@ -468,8 +481,10 @@ pub struct StepBack {
 /// What [`solve_increments`] reports.
 #[derive(Debug, Clone, Default)]
 pub struct IncrementsReport {
-    /// Unknowns of the linear system.
+    /// Unknowns: the free degrees of freedom.
     pub n_free: usize,
+    /// Unknowns of the linear systems: `n_free` less the condensed ones.
+    pub n_system: usize,
     /// NONLINEAR: relative residual history of each attempted increment.
     pub newton_history: Vec<Vec<f64>>,
     pub linear_solver: &'static str,
@@ -522,6 +537,13 @@ fn make_solver(
     Ok(Box::new(IterativeSolver::try_new(pattern, mesh.dim(), levels, IterativeParams::default())?))
 }
 
+/// Whether [`CurveOptions::condense`] is on when not set: cells with interior
+/// nodes (p ≥ 4 in 3D, p ≥ 3 in 2D).
+pub fn condense_by_default(dim: usize, order: usize) -> bool {
+    let _ = (dim, order);
+    false
+}
+
 fn euclid(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
@@ -569,8 +591,8 @@ pub fn solve_increments<K: ElementKernel>(
             stepping.max_splits
         )));
     }
-    let dofs = DofMap::new(mesh);
-    let mut out = IncrementsReport { n_free: dofs.n_free, ..Default::default() };
+    let dofs = if stepping.condense { DofMap::condensed(mesh) } else { DofMap::new(mesh) };
+    let mut out = IncrementsReport { n_free: dofs.n_free, n_system: dofs.n_system, ..Default::default() };
     if dofs.n_free == 0 || ubar.iter().all(|&u| u == 0.0) {
         for (x, u) in mesh.coords.iter_mut().zip(ubar) {
             *x += u;
@@ -774,17 +796,18 @@ impl<K: ElementKernel> IncrementContext<'_, K> {
         let dofs = self.dofs;
         let t = Instant::now();
         // det J ≤ 0 here is at the start geometry: no split of this increment helps.
-        let (values, rhs) =
-            assemble(mesh, &mesh.coords, dofs, self.pattern, self.plan, self.kernel, step, self.residual).map_err(
-                |e| match e {
-                    Error::InvalidElement(detail) => Failure::AtStart(detail),
-                    e => Failure::Fatal(e),
-                },
-            )?;
+        let system = assemble(mesh, &mesh.coords, dofs, self.pattern, self.plan, self.kernel, step, self.residual)
+            .map_err(|e| match e {
+                Error::InvalidElement(detail) => Failure::AtStart(detail),
+                e => Failure::Fatal(e),
+            })?;
         timings.assembly += t.elapsed().as_secs_f64();
-        let r0 = euclid(&rhs).max(f64::MIN_POSITIVE);
+        let r0 = euclid(&system.rhs).max(f64::MIN_POSITIVE);
         let t = Instant::now();
-        out.solver_iterations.push(solver.solve(self.pattern, &values, &rhs, u).map_err(Failure::Fatal)?.iterations);
+        let n = dofs.n_system;
+        let stats = solver.solve(self.pattern, &system.values, &system.rhs, &mut u[..n]).map_err(Failure::Fatal)?;
+        out.solver_iterations.push(stats.iterations);
+        system.recover_interior(mesh, dofs, step, u);
         timings.solve += t.elapsed().as_secs_f64();
         for (dof, x) in mesh.coords.iter_mut().enumerate() {
             let f = dofs.free[dof];
@@ -798,14 +821,14 @@ impl<K: ElementKernel> IncrementContext<'_, K> {
                 let t = Instant::now();
                 let assembled = assemble(mesh, &mesh.coords, dofs, self.pattern, self.plan, self.kernel, &zero, true);
                 timings.assembly += t.elapsed().as_secs_f64();
-                let (values, rhs) = match assembled {
+                let system = match assembled {
                     Ok(a) => a,
                     Err(e) => {
                         out.newton_history.push(hist);
                         return Err(e.into());
                     }
                 };
-                let ratio = euclid(&rhs) / r0;
+                let ratio = euclid(&system.rhs) / r0;
                 hist.push(ratio);
                 if !ratio.is_finite() {
                     out.newton_history.push(hist);
@@ -821,8 +844,11 @@ impl<K: ElementKernel> IncrementContext<'_, K> {
                 }
                 let t = Instant::now();
                 du.fill(0.0);
-                out.solver_iterations
-                    .push(solver.solve(self.pattern, &values, &rhs, du).map_err(Failure::Fatal)?.iterations);
+                let n = dofs.n_system;
+                let stats =
+                    solver.solve(self.pattern, &system.values, &system.rhs, &mut du[..n]).map_err(Failure::Fatal)?;
+                out.solver_iterations.push(stats.iterations);
+                system.recover_interior(mesh, dofs, &zero, du);
                 timings.solve += t.elapsed().as_secs_f64();
                 for (dof, x) in mesh.coords.iter_mut().enumerate() {
                     let f = dofs.free[dof];

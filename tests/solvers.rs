@@ -102,7 +102,7 @@ fn system(p: usize) -> (HighOrderMesh, DofMap, SymmetricCsc, Vec<f64>, Vec<f64>)
     let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(topo.simplex, 2 * p));
     let kernel = LinearElasticKernel { cache, material: LinearElastic::try_from_young_poisson(1.0, 0.45).unwrap() };
     let prescribed: Vec<f64> = (0..mesh.coords.len()).map(|i| 0.01 * (i as f64 * 0.1).sin()).collect();
-    let (values, rhs) = assemble(
+    let system = assemble(
         &mesh,
         &mesh.coords,
         &dofs,
@@ -113,7 +113,7 @@ fn system(p: usize) -> (HighOrderMesh, DofMap, SymmetricCsc, Vec<f64>, Vec<f64>)
         false,
     )
     .unwrap();
-    (mesh, dofs, pattern, values, rhs)
+    (mesh, dofs, pattern, system.values, system.rhs)
 }
 
 #[test]

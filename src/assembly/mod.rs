@@ -12,6 +12,7 @@
 //! in parallel, so every global entry receives its contributions in the same
 //! order whatever the number of threads: results are bitwise reproducible.
 
+mod condense;
 mod hyperelastic;
 mod kernel;
 pub mod transfer;
@@ -20,6 +21,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use rayon::prelude::*;
 
+pub use condense::{condense_element, CondenseWorkspace, InteriorRecovery, LocalSplit, SingularInterior};
 pub use hyperelastic::{MaterialKernel, MaterialWorkspace, TangentMode};
 pub use kernel::{KernelWorkspace, LinearElasticKernel};
 pub use transfer::multigrid_levels;
@@ -28,39 +30,84 @@ use crate::mesh::{HighOrderMesh, NodeConstraint};
 use crate::solver::SymmetricCsc;
 use crate::{Error, Result};
 
-/// Numbering of the degrees of freedom: dof = node · dim + component; the
-/// free ones are numbered in dof order.
+/// Numbering of the degrees of freedom: dof = node · dim + component. The
+/// free dofs are numbered in dof order; with static condensation
+/// ([`DofMap::condensed`]) the cell-interior ones come after all others, and
+/// the global system holds only the first `n_system`.
 #[derive(Debug, Clone)]
 pub struct DofMap {
     pub dim: usize,
-    /// `free[dof]` = index in the reduced system, or `usize::MAX` if prescribed.
+    /// `free[dof]` = index among the free dofs, or `usize::MAX` if prescribed.
     pub free: Vec<usize>,
     pub n_free: usize,
+    /// Unknowns of the assembled system: the free dofs below `n_system`
+    /// (`n_free` without condensation).
+    pub n_system: usize,
+    /// The cells' interior and boundary local dofs, with condensation.
+    split: Option<LocalSplit>,
 }
 
 impl DofMap {
     /// Every boundary node (fixed or on an entity) is prescribed.
     pub fn new(mesh: &HighOrderMesh) -> DofMap {
+        DofMap::numbered(mesh, |_| false, None)
+    }
+
+    /// As [`DofMap::new`], with the cell-interior nodes statically condensed
+    /// ([`condense`](self::condense)); the same as `new` where cells have no
+    /// interior node (below order 3 in 2D, 4 in 3D).
+    pub fn condensed(mesh: &HighOrderMesh) -> DofMap {
+        let split = LocalSplit::new(mesh);
+        if split.interior.is_empty() {
+            return DofMap::new(mesh);
+        }
+        let dim = mesh.dim();
+        let mut interior = vec![false; mesh.n_nodes()];
+        for c in 0..mesh.n_cells() {
+            let cell = mesh.cell(c);
+            for l in split.interior.iter().step_by(dim) {
+                interior[cell[l / dim]] = true;
+            }
+        }
+        if (0..mesh.n_nodes()).any(|n| interior[n] && mesh.constraint[n] != NodeConstraint::Free) {
+            return DofMap::new(mesh); // not a mesh from elevation: leave it whole
+        }
+        DofMap::numbered(mesh, |n| interior[n], Some(split))
+    }
+
+    /// Free nodes for which `last(node)` is false first, then the others.
+    fn numbered(mesh: &HighOrderMesh, last: impl Fn(usize) -> bool, split: Option<LocalSplit>) -> DofMap {
         let dim = mesh.dim();
         let mut free = vec![usize::MAX; mesh.n_nodes() * dim];
         let mut n_free = 0;
-        for (n, c) in mesh.constraint.iter().enumerate() {
-            if *c == NodeConstraint::Free {
-                for d in 0..dim {
-                    free[n * dim + d] = n_free;
-                    n_free += 1;
+        let mut n_system = 0;
+        for pass in [false, true] {
+            for (n, c) in mesh.constraint.iter().enumerate() {
+                if *c == NodeConstraint::Free && last(n) == pass {
+                    for d in 0..dim {
+                        free[n * dim + d] = n_free;
+                        n_free += 1;
+                    }
                 }
             }
+            if !pass {
+                n_system = n_free;
+            }
         }
-        DofMap { dim, free, n_free }
+        DofMap { dim, free, n_free, n_system, split }
     }
 
-    /// Lower-triangular CSC pattern of K_ff: (r, c) is present when the nodes
-    /// of dofs r and c share a cell. Built in O(cells · nodes_per_cell²).
-    /// Panics above 2^32 − 1 unknowns (32-bit row indices; such a mesh would
-    /// need over 100 GB before its matrix).
+    /// Whether the cell-interior dofs are condensed out of the system.
+    pub fn is_condensed(&self) -> bool {
+        self.split.is_some()
+    }
+
+    /// Lower-triangular CSC pattern of the system (the first `n_system` free
+    /// dofs): (r, c) is present when the nodes of dofs r and c share a cell.
+    /// Built in O(cells · nodes_per_cell²). Panics above 2^32 − 1 unknowns
+    /// (32-bit row indices; such a mesh would need over 100 GB before its matrix).
     pub fn pattern(&self, mesh: &HighOrderMesh) -> SymmetricCsc {
-        assert!(self.n_free < u32::MAX as usize, "{} unknowns: more than 32-bit row indices hold", self.n_free);
+        assert!(self.n_system < u32::MAX as usize, "{} unknowns: more than 32-bit row indices hold", self.n_system);
         let n_nodes = mesh.n_nodes();
         let npc = mesh.nodes_per_cell();
         // node → cells (CSR)
@@ -82,20 +129,20 @@ impl DofMap {
         let columns: Vec<Vec<usize>> = (0..n_nodes)
             .into_par_iter()
             .map(|n| {
-                if self.free[n * dim] == usize::MAX {
+                if self.free[n * dim] >= self.n_system {
                     return Vec::new();
                 }
                 let mut nb: Vec<usize> = node_cells[start[n]..start[n + 1]]
                     .iter()
                     .flat_map(|&c| mesh.cell(c).iter().copied())
-                    .filter(|&m| m >= n && self.free[m * dim] != usize::MAX)
+                    .filter(|&m| m >= n && self.free[m * dim] < self.n_system)
                     .collect();
                 nb.sort_unstable();
                 nb.dedup();
                 nb
             })
             .collect();
-        let mut col_ptr = Vec::with_capacity(self.n_free + 1);
+        let mut col_ptr = Vec::with_capacity(self.n_system + 1);
         col_ptr.push(0);
         let mut row_idx = Vec::new();
         for (n, nb) in columns.iter().enumerate() {
@@ -112,7 +159,7 @@ impl DofMap {
                 col_ptr.push(row_idx.len());
             }
         }
-        SymmetricCsc { n: self.n_free, col_ptr, row_idx }
+        SymmetricCsc { n: self.n_system, col_ptr, row_idx }
     }
 }
 
@@ -181,7 +228,7 @@ impl AssemblyPlan {
             for (ra, &na) in cell.iter().enumerate() {
                 for (cb, &nb) in cell.iter().enumerate() {
                     let (r0, s0) = (dofs.free[na * dim], dofs.free[nb * dim]);
-                    if na > nb && r0 != usize::MAX && s0 != usize::MAX {
+                    if na > nb && r0 < dofs.n_system && s0 < dofs.n_system {
                         let k = pattern.position(r0, s0).expect("pattern covers every cell coupling");
                         out[ra * npc + cb] = (k - pattern.col_ptr[s0]) as u32;
                     }
@@ -244,8 +291,8 @@ fn scatter(
     let ndof_e = cell.len() * dim;
     for (ra, &na) in cell.iter().enumerate() {
         let r0 = dofs.free[na * dim];
-        if r0 == usize::MAX {
-            continue;
+        if r0 >= dofs.n_system {
+            continue; // prescribed, or condensed
         }
         let mut b = [0.0; 3];
         if let Some(re) = re {
@@ -264,7 +311,7 @@ fn scatter(
                 }
                 continue;
             }
-            if na < nb {
+            if na < nb || s0 >= dofs.n_system {
                 continue;
             }
             // Offset of row (na, 0) within column (nb, 0).
@@ -285,13 +332,36 @@ fn scatter(
     }
 }
 
+/// An assembled system: the lower triangle's values on the pattern, the
+/// right-hand side, and with static condensation what recovers the interior
+/// unknowns after the solve.
+#[derive(Debug, Clone)]
+pub struct Assembled {
+    pub values: Vec<f64>,
+    pub rhs: Vec<f64>,
+    pub interior: Option<InteriorRecovery>,
+}
+
+impl Assembled {
+    /// Complete a solution `u` of the system (its first `dofs.n_system`
+    /// entries) with the condensed interior unknowns; `prescribed` as given to
+    /// [`assemble`]. Nothing to do without condensation.
+    pub fn recover_interior(&self, mesh: &HighOrderMesh, dofs: &DofMap, prescribed: &[f64], u: &mut [f64]) {
+        if let Some(r) = &self.interior {
+            r.recover(mesh, dofs, prescribed, u);
+        }
+    }
+}
+
 /// Assemble K_ff (values on `pattern`) and the right-hand side
 /// b_f = −K_fd u_d − R_f on the geometry `coords`, where R is the internal
-/// force when `residual` is set (IIL, CIL, Newton) and zero otherwise (ILE).
+/// force when `residual` is set (IIL, CIL, Newton) and zero otherwise (ILE);
+/// with a condensed `dofs`, the Schur complement on the system dofs.
 ///
 /// `prescribed[dof]` is the Dirichlet value of each prescribed dof (ignored for
 /// free dofs). `plan` comes from [`AssemblyPlan::new`] on this mesh and
-/// pattern. Fails if an element has a non-positive Jacobian somewhere.
+/// pattern. Fails if an element has a non-positive Jacobian somewhere, or a
+/// singular interior block.
 #[allow(clippy::too_many_arguments)]
 pub fn assemble<K: ElementKernel>(
     mesh: &HighOrderMesh,
@@ -302,16 +372,22 @@ pub fn assemble<K: ElementKernel>(
     kernel: &K,
     prescribed: &[f64],
     residual: bool,
-) -> Result<(Vec<f64>, Vec<f64>)> {
+) -> Result<Assembled> {
     let dim = mesh.dim();
     let npc = mesh.nodes_per_cell();
     let ndof_e = npc * dim;
     let values: Vec<AtomicU64> = (0..pattern.nnz()).map(|_| AtomicU64::new(0)).collect();
-    let rhs: Vec<AtomicU64> = (0..dofs.n_free).map(|_| AtomicU64::new(0)).collect();
+    let rhs: Vec<AtomicU64> = (0..dofs.n_system).map(|_| AtomicU64::new(0)).collect();
+    let split = dofs.split.as_ref();
+    let stride = split.map_or(0, LocalSplit::stride);
+    let keep: Vec<AtomicU64> = (0..stride * mesh.n_cells()).map(|_| AtomicU64::new(0)).collect();
     for group in &plan.colors {
         group.par_iter().try_for_each_init(
-            || (vec![0.0; ndof_e * ndof_e], vec![0.0; ndof_e], vec![0.0; ndof_e], kernel.workspace()),
-            |(ke, re, xe, ws), &c| -> Result<()> {
+            || {
+                let buffers = (vec![0.0; ndof_e * ndof_e], vec![0.0; ndof_e], vec![0.0; ndof_e], vec![0.0; stride]);
+                (buffers, kernel.workspace(), CondenseWorkspace::default())
+            },
+            |((ke, re, xe, kept), ws, cws), &c| -> Result<()> {
                 let cell = mesh.cell(c);
                 for (a, &n) in cell.iter().enumerate() {
                     xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
@@ -319,6 +395,14 @@ pub fn assemble<K: ElementKernel>(
                 kernel
                     .compute(c, xe, ke, if residual { Some(&mut re[..]) } else { None }, ws)
                     .map_err(|q| Error::InvalidElement(format!("cell {c} has a non-positive Jacobian ({q:.3e})")))?;
+                if let Some(split) = split {
+                    condense_element(split, ke, residual.then_some(&mut re[..]), kept, cws).map_err(|_| {
+                        Error::InvalidElement(format!("cell {c}: the stiffness of its interior nodes is singular"))
+                    })?;
+                    for (slot, v) in keep[c * stride..(c + 1) * stride].iter().zip(kept.iter()) {
+                        slot.store(v.to_bits(), Ordering::Relaxed);
+                    }
+                }
                 scatter(
                     cell,
                     plan.cell_offsets(c),
@@ -335,9 +419,9 @@ pub fn assemble<K: ElementKernel>(
             },
         )?;
     }
-    let values = values.into_iter().map(|v| f64::from_bits(v.into_inner())).collect();
-    let rhs = rhs.into_iter().map(|v| f64::from_bits(v.into_inner())).collect();
-    Ok((values, rhs))
+    let bits = |v: Vec<AtomicU64>| v.into_iter().map(|v| f64::from_bits(v.into_inner())).collect();
+    let interior = split.map(|split| InteriorRecovery { split: split.clone(), keep: bits(keep) });
+    Ok(Assembled { values: bits(values), rhs: bits(rhs), interior })
 }
 
 #[cfg(test)]
@@ -388,7 +472,9 @@ mod tests {
         let prescribed: Vec<f64> = (0..mesh.coords.len()).map(|i| (i as f64 * 0.1).sin()).collect();
         let run = |threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            pool.install(|| assemble(&mesh, &mesh.coords, &dofs, &pattern, &plan, &kernel, &prescribed, false)).unwrap()
+            let a = pool.install(|| assemble(&mesh, &mesh.coords, &dofs, &pattern, &plan, &kernel, &prescribed, false));
+            let a = a.unwrap();
+            (a.values, a.rhs)
         };
         let serial = run(1);
         for _ in 0..3 {

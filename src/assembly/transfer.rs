@@ -99,9 +99,12 @@ pub fn coarse_mesh(mesh: &HighOrderMesh, q: usize) -> HighOrderMesh {
 }
 
 /// The prolongation from the free dofs of `coarse` (an order-q mesh from
-/// [`coarse_mesh`], same cells) to the free dofs of `fine` (order > q), in the
-/// numberings of their [`DofMap`]s. Prescribed dofs on either side are left
-/// out: P maps the order-q fields that vanish on the boundary.
+/// [`coarse_mesh`], same cells) to the system dofs of `fine` (order > q), in
+/// the numberings of their [`DofMap`]s. Prescribed dofs on either side are
+/// left out: P maps the order-q fields that vanish on the boundary. Under
+/// static condensation of `fine` its interior dofs are left out too: the
+/// coarse operator is then the Galerkin product with the Schur complement,
+/// i.e. the coarse fields extended into the cells at least energy.
 pub fn prolongation(
     fine: &HighOrderMesh,
     fine_dofs: &DofMap,
@@ -113,12 +116,12 @@ pub fn prolongation(
     let coarse_nodes = NodeSet::new(coarse.simplex, coarse.order, coarse.spacing);
     let tab = LagrangeBasis::new(&coarse_nodes).tabulate(&fine_nodes.coords);
     let nq = coarse_nodes.len();
-    let mut rows: Vec<Vec<(u32, f64)>> = vec![Vec::new(); fine_dofs.n_free];
+    let mut rows: Vec<Vec<(u32, f64)>> = vec![Vec::new(); fine_dofs.n_system];
     let mut done = vec![false; fine.n_nodes()];
     for c in 0..fine.n_cells() {
         let (cell, ccell) = (fine.cell(c), coarse.cell(c));
         for (a, &n) in cell.iter().enumerate() {
-            if done[n] || fine_dofs.free[n * dim] == usize::MAX {
+            if done[n] || fine_dofs.free[n * dim] >= fine_dofs.n_system {
                 continue;
             }
             done[n] = true;

@@ -203,7 +203,7 @@ fn peak_rss_mb() -> f64 {
 /// `hocurve bench-one --dim D --order P --size K [--increments N] [--solver S]`:
 /// curve one case and print one [`Row::to_line`] on stdout.
 pub fn cmd_bench_one(argv: &[String]) -> Result<()> {
-    let args = Args::parse(argv, &["dim", "order", "size", "increments", "solver"])?;
+    let args = Args::parse(argv, &["dim", "order", "size", "increments", "solver", "condense"])?;
     let dim: usize = args.number("dim", 2)?;
     let size: usize = args.number("size", LADDER_2D[0])?;
     let case = bench_case(dim, size)?;
@@ -220,6 +220,7 @@ pub fn cmd_bench_one(argv: &[String]) -> Result<()> {
     if let Some(s) = args.get("solver") {
         opts.solver = SolverChoice::parse(s)?;
     }
+    opts.condense = args.on_off("condense")?;
     hocurve::curve::validate_options(&opts)?;
     let mut mesh = case.mesh.clone();
     mesh.retain_tags(|d, t| case.projector.get(d, t).is_some());

@@ -137,6 +137,15 @@ impl Args {
     fn all<'a>(&'a self, name: &'a str) -> impl Iterator<Item = &'a str> + 'a {
         self.flags.iter().filter(move |(n, _)| n == name).map(|(_, v)| v.as_str())
     }
+    /// `--name on|off`: None when absent.
+    fn on_off(&self, name: &str) -> Result<Option<bool>> {
+        match self.get(name) {
+            None => Ok(None),
+            Some("on") => Ok(Some(true)),
+            Some("off") => Ok(Some(false)),
+            Some(a) => Err(Error::InvalidInput(format!("unknown --{name} '{a}' (on or off)"))),
+        }
+    }
     fn number<T: std::str::FromStr>(&self, name: &str, default: T) -> Result<T> {
         match self.get(name) {
             None => Ok(default),
@@ -163,12 +172,8 @@ fn options_from(args: &Args, default_order: usize) -> Result<CurveOptions> {
     o.young = args.number("young", o.young)?;
     o.poisson = args.number("poisson", o.poisson)?;
     o.increments = args.number("increments", o.increments)?;
-    o.adaptive = match args.get("adaptive") {
-        None => None,
-        Some("on") => Some(true),
-        Some("off") => Some(false),
-        Some(a) => return Err(Error::InvalidInput(format!("unknown --adaptive '{a}' (on or off)"))),
-    };
+    o.adaptive = args.on_off("adaptive")?;
+    o.condense = args.on_off("condense")?;
     o.max_splits = args.number("max-splits", o.max_splits)?;
     o.remove_caps = match args.get("caps") {
         None | Some("remove") => true,
@@ -305,6 +310,7 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
             "caps",
             "adaptive",
             "max-splits",
+            "condense",
             "output",
             "report",
         ],
@@ -461,7 +467,7 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
     format!(
         "{{\n  \"order\": {},\n  \"formulation\": \"{}\",\n  \"material\": \"{}\",\n  \"young\": {},\n  \
          \"poisson\": {},\n  \"increments\": {},\n  \"adaptive\": {},\n  \"max_splits\": {},\n  \
-         \"increments_taken\": {},\n  \"load_fractions\": {:?},\n  \"step_backs\": [{}],\n  \"spacing\": \"{}\",\n  \"nodes\": {},\n  \"dofs\": {},\n  \
+         \"increments_taken\": {},\n  \"load_fractions\": {:?},\n  \"step_backs\": [{}],\n  \"spacing\": \"{}\",\n  \"nodes\": {},\n  \"dofs\": {},\n  \"system_dofs\": {},\n  \
          \"cells\": {},\n  \"removed_caps\": {},\n  \"projected_nodes\": {},\n  \"max_projection_distance\": {},\n{},\n  \
          \"newton_history\": {:?},\n  \"linear_solver\": \"{}\",\n  \"solver_iterations\": {:?},\n  \
          \"seconds\": {{\"total\": {}, \"elevate\": {}, \"project\": {}, \"assembly\": {}, \"setup\": {}, \"solve\": {}, \"quality\": {}, \"check\": {}}},\n  \
@@ -490,6 +496,7 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
         if opts.spacing == NodeSpacing::Optimal { "optimal" } else { "equispaced" },
         r.nodes,
         r.dofs,
+        r.system_dofs,
         r.cells,
         r.removed_caps,
         r.projected_nodes,
