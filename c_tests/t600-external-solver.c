@@ -4,7 +4,9 @@
  * built-in solver (1e-7 of the shortest edge), called once per increment, with
  * no invalid cell; every system it receives is a full symmetric CSR matrix
  * with sorted columns. A callback that fails or writes NaN gives
- * HOC_ERROR_SOLVER and leaves the nodes bitwise unchanged; NULL restores the
+ * HOC_ERROR_SOLVER and leaves the nodes bitwise unchanged; with static
+ * condensation the callback receives 3 unknowns fewer per tet at p = 4 and the
+ * nodes are the same; NULL restores the
  * built-in solver; a NULL handle gives HOC_ERROR_NULL_POINTER. */
 #include "curve_checks.h"
 
@@ -107,16 +109,20 @@ static double shortest_edge(const FixtureMesh *m) {
   return h;
 }
 
-/* Curves at order p; with cg != NULL through the external solver. Returns the nodes (malloc'd). */
-static double *curve(const FixtureMesh *m, int p, Cg *cg, size_t *n_nodes) {
+/* Curves at order p, with static condensation on or off; with cg != NULL through
+ * the external solver. Returns the nodes (malloc'd) and the cell count. */
+static double *curve(const FixtureMesh *m, int p, Cg *cg, int condense, size_t *n_nodes, size_t *n_cells) {
   HocMesh *mesh = create_fixture_mesh(m, sphere_box_projector, NULL);
   CHECK_OK(mesh, hoc_mesh_set_order(mesh, p, HOC_SPACING_OPTIMAL));
+  CHECK_OK(mesh, hoc_mesh_set_static_condensation(mesh, condense));
   if (cg) CHECK_OK(mesh, hoc_mesh_set_linear_solver(mesh, cg_solve, cg));
   CHECK_OK(mesh, hoc_mesh_run_increments(mesh, INCREMENTS));
   HocQuality q;
   CHECK_OK(mesh, hoc_mesh_quality(mesh, &q));
   CHECK(q.n_invalid == 0, "p=%d (%s): %zu invalid cells", p, cg ? "external" : "built-in", q.n_invalid);
   CHECK_OK(mesh, hoc_mesh_node_count(mesh, n_nodes));
+  size_t npc = 0;
+  CHECK_OK(mesh, hoc_mesh_cell_count(mesh, n_cells, &npc));
   double *x = (double *)malloc(sizeof(double) * 3 * *n_nodes);
   CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, *n_nodes, x));
   CHECK_OK(NULL, hoc_mesh_destroy(&mesh));
@@ -151,9 +157,9 @@ int main(int argc, char **argv) {
 
   for (int p = 2; p <= max_order; ++p) {
     Cg cg = {0};
-    size_t n1 = 0, n2 = 0;
-    double *xe = curve(&m, p, &cg, &n1);
-    double *xd = curve(&m, p, NULL, &n2);
+    size_t n1 = 0, n2 = 0, cells = 0;
+    double *xe = curve(&m, p, &cg, 1, &n1, &cells);
+    double *xd = curve(&m, p, NULL, 1, &n2, &cells);
     CHECK(n1 == n2, "node counts %zu and %zu", n1, n2);
     double diff = 0.0;
     for (size_t i = 0; i < 3 * n1; ++i) diff = fmax(diff, fabs(xe[i] - xd[i]));
@@ -167,6 +173,31 @@ int main(int argc, char **argv) {
     free(cg.work);
     free(xe);
     free(xd);
+  }
+
+  /* Static condensation (default on) hands the external solver the Schur
+   * complement on the vertex, edge and face nodes: at p = 4, 3 unknowns fewer
+   * per tet (its one interior node), and the same nodes to round-off. */
+  if (max_order >= 3) {
+    FixtureMesh coarse; /* a coarser cavity: Jacobi CG at p = 4 is slow */
+    CHECK(fixture_tetgen_sphere_box(1, 4, 50.0, &coarse) == 0, "TetGen failed");
+    double hc = shortest_edge(&coarse);
+    Cg on = {0}, off = {0};
+    size_t n_on = 0, n_off = 0, cells = 0;
+    double *x_on = curve(&coarse, 4, &on, 1, &n_on, &cells);
+    double *x_off = curve(&coarse, 4, &off, 0, &n_off, &cells);
+    double diff = 0.0;
+    for (size_t i = 0; i < 3 * n_on; ++i) diff = fmax(diff, fabs(x_on[i] - x_off[i]));
+    printf("p=4: %lld unknowns condensed, %lld not (%zu tets), max |x_on - x_off| = %.2e (%.2e h)\n",
+           (long long)on.last_n, (long long)off.last_n, cells, diff, diff / hc);
+    CHECK(off.last_n - on.last_n == (int64_t)(3 * cells), "p=4: %lld - %lld unknowns for %zu tets",
+          (long long)off.last_n, (long long)on.last_n, cells);
+    CHECK(diff <= 1e-9 * hc, "p=4: condensation changed the nodes by %g", diff);
+    fixture_mesh_free(&coarse);
+    free(on.work);
+    free(off.work);
+    free(x_on);
+    free(x_off);
   }
 
   /* Failures leave the curved mesh of the previous (built-in) run as it was. */

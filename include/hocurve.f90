@@ -260,6 +260,14 @@ module hocurve
       integer(c_int) :: status
     end function hoc_mesh_set_adaptive_stepping
 
+    function hoc_mesh_set_static_condensation(mesh, enabled) &
+        bind(C, name="hoc_mesh_set_static_condensation") result(status)
+      import :: c_int, c_ptr
+      type(c_ptr), value :: mesh
+      integer(c_int), value :: enabled
+      integer(c_int) :: status
+    end function hoc_mesh_set_static_condensation
+
     function hoc_mesh_increment_count(mesh, n_taken, n_step_backs) &
         bind(C, name="hoc_mesh_increment_count") result(status)
       import :: c_int, c_ptr, c_size_t
@@ -380,7 +388,8 @@ module hocurve
             hoc_mesh_set_projector, hoc_mesh_set_progress, hoc_mesh_set_linear_solver, &
             hoc_mesh_set_threads, hoc_mesh_set_remove_caps, hoc_mesh_get_input_cells, hoc_mesh_set_order, &
             hoc_mesh_set_material, hoc_mesh_set_formulation, hoc_mesh_set_newton, hoc_mesh_set_fibres, &
-            hoc_mesh_set_adaptive_stepping, hoc_mesh_run_increments, hoc_mesh_increment_count, &
+            hoc_mesh_set_adaptive_stepping, hoc_mesh_set_static_condensation, hoc_mesh_run_increments, &
+            hoc_mesh_increment_count, &
             hoc_mesh_get_load_fractions, hoc_mesh_get_step_backs, &
             hoc_mesh_quality, hoc_mesh_cell_quality, hoc_mesh_node_count, hoc_mesh_cell_count, &
             hoc_mesh_get_nodes, hoc_mesh_get_cells, hoc_mesh_write, hoc_mesh_last_error, &

@@ -47,7 +47,9 @@ typedef int (*HocProgressFn)(void *user_data, int stage, int step, int total);
  *
  * A is the stiffness matrix restricted to the free degrees of freedom (the
  * unknowns of the interior and of untagged boundary nodes; the projected
- * nodes are eliminated): `n` × `n`, symmetric, given in full CSR form with
+ * nodes are eliminated; with static condensation, the default, the nodes
+ * inside each cell are eliminated too and A is the Schur complement on the
+ * others, see hoc_mesh_set_static_condensation): `n` × `n`, symmetric, given in full CSR form with
  * both triangles, 0-based, columns sorted within each row. Row `i` holds the
  * columns `col_idx[row_ptr[i] .. row_ptr[i+1]-1]` with the values at the
  * same positions of `values`; `row_ptr` has `n + 1` entries and `row_ptr[n]`
@@ -402,6 +404,21 @@ HocStatus hoc_mesh_set_threads(HocMesh *mesh, int n_threads);
  * @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
  */
 HocStatus hoc_mesh_set_remove_caps(HocMesh *mesh, int remove);
+
+/**
+ * Static condensation of the cell-interior nodes (default 1). The nodes
+ * inside a cell (from p = 4 for tets, p = 3 for triangles) couple only with
+ * that cell's nodes; they are eliminated cell by cell before each linear
+ * solve and recovered after it, so the systems (also those an external
+ * solver receives, see HocLinearSolveFn) hold only the vertex, edge and face
+ * nodes. The curved mesh is the same to round-off; the runs are faster
+ * (1.04x at p = 4 to 1.5x at p = 6) and use less memory.
+ *
+ * @param[in,out] mesh the handle
+ * @param[in] enabled 1 on, 0 off
+ * @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
+ */
+HocStatus hoc_mesh_set_static_condensation(HocMesh *mesh, int enabled);
 
 /**
  * Polynomial order (1..10) and node spacing. Discards a curved result.

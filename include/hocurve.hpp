@@ -230,6 +230,8 @@ class Mesh {
   void set_adaptive_stepping(int enabled, int max_splits = 6) {
     check(hoc_mesh_set_adaptive_stepping(mesh_, enabled, max_splits), mesh_);
   }
+  /** Static condensation of the cell-interior nodes: 1 on (default), 0 off. */
+  void set_static_condensation(int enabled) { check(hoc_mesh_set_static_condensation(mesh_, enabled), mesh_); }
   /** Newton–Raphson settings of HOC_FORMULATION_NONLINEAR: tolerance > 0, max_iterations ≥ 1. */
   void set_newton(double tolerance, int max_iterations) {
     check(hoc_mesh_set_newton(mesh_, tolerance, max_iterations), mesh_);

@@ -99,10 +99,15 @@ pub struct CurveOptions {
     /// Adaptive load stepping: halvings allowed per nominal increment, at most
     /// [`MAX_SPLITS`] (default [`DEFAULT_MAX_SPLITS`] = 6: down to 1/64 of a step).
     pub max_splits: usize,
-    /// Static condensation of the cell-interior nodes (eliminated cell by
-    /// cell, [`crate::assembly::condense`]): the linear systems only hold the
-    /// vertex, edge and face nodes. None (default): [`condense_by_default`].
-    pub condense: Option<bool>,
+    /// Static condensation of the cell-interior nodes (default on; cells
+    /// have some from p = 4 in 3D, p = 3 in 2D): they are eliminated cell by
+    /// cell ([`crate::assembly::condense`]), so the linear systems hold only
+    /// the vertex, edge and face nodes; the mesh is the same to round-off.
+    /// Measured (bench-one, 2026-11-23, medians of 3): 3D PCG 1.04× faster
+    /// at p = 4, 1.23× at p = 5 and 1.35× at p = 6 for one increment (1.07×
+    /// and 1.25× for ten); 2D direct 1.37× at p = 4 and 1.52× at p = 6;
+    /// 7–38 % less memory.
+    pub condense: bool,
 }
 
 impl CurveOptions {
@@ -132,7 +137,7 @@ impl Default for CurveOptions {
             remove_caps: true,
             adaptive: None,
             max_splits: DEFAULT_MAX_SPLITS,
-            condense: None,
+            condense: true,
         }
     }
 }
@@ -334,7 +339,7 @@ pub fn curve(
         solver: opts.solver.clone(),
         adaptive: opts.adaptive_enabled(),
         max_splits: opts.max_splits,
-        condense: opts.condense.unwrap_or_else(|| condense_by_default(dim, opts.order)),
+        condense: opts.condense,
     };
     let mode = match opts.formulation {
         Formulation::Cil | Formulation::Nonlinear => TangentMode::Consistent,
@@ -535,17 +540,6 @@ fn make_solver(
     // The free dofs of a node are consecutive: nodal blocks for the smoother.
     let levels = multigrid_levels(mesh, dofs);
     Ok(Box::new(IterativeSolver::try_new(pattern, mesh.dim(), levels, IterativeParams::default())?))
-}
-
-/// Whether [`CurveOptions::condense`] is on when not set: cells with interior
-/// nodes (p ≥ 4 in 3D, p ≥ 3 in 2D).
-pub fn condense_by_default(dim: usize, order: usize) -> bool {
-    let _ = (dim, order);
-    false
-}
-
-fn euclid(v: &[f64]) -> f64 {
-    v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
 
 /// Move `mesh` by the prescribed boundary displacement `ubar` (one value per
@@ -802,7 +796,7 @@ impl<K: ElementKernel> IncrementContext<'_, K> {
                 e => Failure::Fatal(e),
             })?;
         timings.assembly += t.elapsed().as_secs_f64();
-        let r0 = euclid(&system.rhs).max(f64::MIN_POSITIVE);
+        let r0 = system.rhs_norm.max(f64::MIN_POSITIVE);
         let t = Instant::now();
         let n = dofs.n_system;
         let stats = solver.solve(self.pattern, &system.values, &system.rhs, &mut u[..n]).map_err(Failure::Fatal)?;
@@ -828,7 +822,7 @@ impl<K: ElementKernel> IncrementContext<'_, K> {
                         return Err(e.into());
                     }
                 };
-                let ratio = euclid(&system.rhs) / r0;
+                let ratio = system.rhs_norm / r0;
                 hist.push(ratio);
                 if !ratio.is_finite() {
                     out.newton_history.push(hist);

@@ -159,6 +159,13 @@ impl Session {
         self.reset(self.input.clone(), opts)
     }
 
+    /// Static condensation of the cell-interior nodes (default on; see
+    /// [`CurveOptions::condense`]). Keeps a curved result: it changes how the
+    /// systems are solved, not the mesh.
+    pub fn set_condense(&mut self, condense: bool) {
+        self.opts.condense = condense;
+    }
+
     /// Material model and constants (E > 0, 0 ≤ ν < 0.5). Whether the model
     /// suits the formulation is checked at the next run, so the two may be
     /// set in any order.

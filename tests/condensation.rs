@@ -12,15 +12,7 @@ fn run(case: &Case, order: usize, formulation: Formulation, solver: SolverChoice
     mesh.retain_tags(|d, t| case.projector.get(d, t).is_some());
     let material =
         if formulation == Formulation::Ile { MaterialModel::LinearElastic } else { MaterialModel::NeoHookean };
-    let opts = CurveOptions {
-        order,
-        increments: 2,
-        formulation,
-        material,
-        solver,
-        condense: Some(condense),
-        ..Default::default()
-    };
+    let opts = CurveOptions { order, increments: 2, formulation, material, solver, condense, ..Default::default() };
     curve(&mesh, &case.projector, &opts, &mut |_| true).unwrap()
 }
 
@@ -70,10 +62,12 @@ fn condensed_and_full_solves_give_the_same_mesh_in_2d() {
 #[test]
 fn the_iterative_solver_on_the_condensed_system_matches_the_direct_full_one() {
     let case = cases::sphere_in_box_3d(2, 3);
-    for p in [4, 5] {
+    for p in [4, 5, 6] {
         let full = run(&case, p, Formulation::Ile, SolverChoice::Direct, false);
         let cond = run(&case, p, Formulation::Ile, SolverChoice::Iterative, true);
         assert_eq!(cond.report.linear_solver, "pcg-pmg");
+        // PCG itself converged (no direct fallback, which reports 0 iterations).
+        assert!(cond.report.solver_iterations.iter().all(|&n| n > 0 && n < 60), "{:?}", cond.report.solver_iterations);
         let d = difference(&full, &cond);
         println!("p={p}: PCG iterations {:?}, nodes differ by {d:.1e}", cond.report.solver_iterations);
         // PCG stops at ‖r‖ ≤ 1e-5 ‖b‖: a few 1e-6 of the mesh size.
@@ -86,4 +80,39 @@ fn orders_without_interior_nodes_are_left_whole() {
     let case = cases::sphere_in_box_3d(2, 3);
     let cond = run(&case, 3, Formulation::Ile, SolverChoice::Direct, true);
     assert_eq!(cond.report.system_dofs, cond.report.dofs);
+}
+
+/// The Newton residual is measured on every free dof whether or not the
+/// interior ones are condensed out of the system.
+#[test]
+fn the_residual_norm_counts_the_condensed_unknowns() {
+    use hocurve::assembly::{assemble, AssemblyPlan, DofMap, LinearElasticKernel};
+    use hocurve::mapping::ElementCache;
+    use hocurve::material::LinearElastic;
+    use hocurve::mesh::{validate_and_orient, HighOrderMesh, Topology};
+    use hocurve::quadrature::simplex_rule;
+    use hocurve::reference::{LagrangeBasis, NodeSet, NodeSpacing};
+    let case = cases::sphere_in_box_3d(2, 1);
+    let (lin, _) = validate_and_orient(&case.mesh).unwrap();
+    let topo = Topology::new(&lin).unwrap();
+    let nodes = NodeSet::new(topo.simplex, 4, NodeSpacing::Optimal);
+    let mesh = HighOrderMesh::elevate(&lin, &topo, &nodes, NodeSpacing::Optimal).unwrap();
+    let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(topo.simplex, 6));
+    let kernel = LinearElasticKernel { cache, material: LinearElastic::try_from_young_poisson(1.0, 0.45).unwrap() };
+    let prescribed: Vec<f64> = (0..mesh.coords.len()).map(|i| 0.01 * (i as f64 * 0.37).sin()).collect();
+    let norms: Vec<(f64, f64, usize)> = [DofMap::new(&mesh), DofMap::condensed(&mesh)]
+        .iter()
+        .map(|dofs| {
+            let pattern = dofs.pattern(&mesh);
+            let plan = AssemblyPlan::new(&mesh, dofs, &pattern);
+            let a = assemble(&mesh, &mesh.coords, dofs, &pattern, &plan, &kernel, &prescribed, true).unwrap();
+            (a.rhs_norm, a.rhs.iter().map(|v| v * v).sum::<f64>().sqrt(), pattern.n)
+        })
+        .collect();
+    let ((full, full_rhs, nf), (cond, cond_rhs, nc)) = (norms[0], norms[1]);
+    println!("‖b‖ full {full:.6e} ({nf} unknowns), condensed {cond:.6e} ({nc}); ‖condensed rhs‖ {cond_rhs:.6e}");
+    assert!(nc < nf);
+    assert!((full - full_rhs).abs() <= 1e-14 * full, "without condensation the norm is ‖rhs‖");
+    assert!((full - cond).abs() <= 1e-12 * full, "{full} vs {cond}");
+    assert!((cond - cond_rhs).abs() > 1e-6 * full, "the condensed rhs alone would measure another norm");
 }

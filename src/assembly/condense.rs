@@ -18,6 +18,8 @@
 //! solver path applies unchanged; K_II is factored by LU with partial pivoting
 //! (an indefinite CIL or Newton tangent can reach it).
 
+use rayon::prelude::*;
+
 use super::DofMap;
 use crate::mesh::HighOrderMesh;
 use crate::reference::NodeSet;
@@ -185,19 +187,32 @@ impl InteriorRecovery {
     pub fn recover(&self, mesh: &HighOrderMesh, dofs: &DofMap, prescribed: &[f64], u: &mut [f64]) {
         let dim = mesh.dim();
         let (ni, nb) = (self.split.interior.len(), self.split.boundary.len());
-        let stride = self.split.stride();
-        let mut ub = vec![0.0; nb];
-        for (c, keep) in self.keep.chunks_exact(stride).enumerate() {
-            let cell = mesh.cell(c);
-            for (b, &l) in self.split.boundary.iter().enumerate() {
-                let dof = cell[l / dim] * dim + l % dim;
-                let f = dofs.free[dof];
-                ub[b] = if f == usize::MAX { prescribed[dof] } else { u[f] };
-            }
-            let (w, g) = keep.split_at(ni * nb);
-            for (i, &l) in self.split.interior.iter().enumerate() {
-                let f = dofs.free[cell[l / dim] * dim + l % dim];
-                u[f] = g[i] - w[i * nb..(i + 1) * nb].iter().zip(&ub).map(|(a, b)| a * b).sum::<f64>();
+        let known: &[f64] = u;
+        let local = |c: usize, l: usize| mesh.cell(c)[l / dim] * dim + l % dim;
+        // Per cell in parallel (reads only), then written in one pass.
+        let interior: Vec<f64> = self
+            .keep
+            .par_chunks_exact(self.split.stride())
+            .enumerate()
+            .flat_map_iter(|(c, keep)| {
+                let ub: Vec<f64> = (self.split.boundary.iter())
+                    .map(|&l| {
+                        let dof = local(c, l);
+                        let f = dofs.free[dof];
+                        if f == usize::MAX {
+                            prescribed[dof]
+                        } else {
+                            known[f]
+                        }
+                    })
+                    .collect();
+                let (w, g) = keep.split_at(ni * nb);
+                (0..ni).map(move |i| g[i] - w[i * nb..(i + 1) * nb].iter().zip(&ub).map(|(a, b)| a * b).sum::<f64>())
+            })
+            .collect();
+        for (c, values) in interior.chunks_exact(ni).enumerate() {
+            for (&l, &v) in self.split.interior.iter().zip(values) {
+                u[dofs.free[local(c, l)]] = v;
             }
         }
     }

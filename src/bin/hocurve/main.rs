@@ -47,6 +47,7 @@ USAGE:
                 [--young E] [--poisson NU] [--increments N]
                 [--spacing optimal|equispaced] [--solver auto|direct|iterative]
                 [--caps remove|keep] [--adaptive on|off] [--max-splits K]
+                [--condense on|off]
       Curve a linear gmsh (.msh 4.1) mesh. TAG is the elementary entity tag of
       the boundary facets (or 3D feature curves) that lie on SHAPE:
         sphere:cx,cy,cz,r        circle:cx,cy,r (2D)     circle3:cx,cy,cz,nx,ny,nz,r
@@ -60,6 +61,9 @@ USAGE:
       iteration fails is undone and halved, at most K times (--max-splits,
       default 6, at most 30); the run fails only at that limit. The increments
       taken and the step backs are printed and written to the report.
+      The cell-interior nodes (p >= 4 in 3D, p >= 3 in 2D) are eliminated
+      cell by cell before each solve unless --condense off (same mesh; the
+      report's system_dofs counts the unknowns actually solved for).
 
   hocurve quality MESH.msh [--report R.json]
       Measure Q1, Q2, Q3 of any high-order gmsh mesh.
@@ -173,7 +177,7 @@ fn options_from(args: &Args, default_order: usize) -> Result<CurveOptions> {
     o.poisson = args.number("poisson", o.poisson)?;
     o.increments = args.number("increments", o.increments)?;
     o.adaptive = args.on_off("adaptive")?;
-    o.condense = args.on_off("condense")?;
+    o.condense = args.on_off("condense")?.unwrap_or(o.condense);
     o.max_splits = args.number("max-splits", o.max_splits)?;
     o.remove_caps = match args.get("caps") {
         None | Some("remove") => true,
