@@ -2,7 +2,8 @@
 //!
 //! [`SymmetricCsc`] holds the lower triangle of a symmetric sparse matrix in
 //! compressed-column form; [`SparseCholesky`] does the symbolic analysis (fill-
-//! reducing AMD ordering and elimination tree) once and the numeric
+//! reducing ordering, AMD or nested dissection, see [`DirectOrdering`], and
+//! elimination tree) once and the numeric
 //! factorisation for every new set of values on the same pattern.
 //! [`ExternalAdapter`] hands each system to a solver of the host's
 //! ([`SystemSolver`]) as a full CSR matrix.
@@ -15,7 +16,7 @@ mod lu;
 pub mod pcg;
 pub mod pmg;
 
-pub use cholesky::SparseCholesky;
+pub use cholesky::{nested_dissection, node_block_size, DirectOrdering, SparseCholesky};
 pub use external::{CsrView, ExternalAdapter, ExternalSolver, FullCsrPattern, SystemSolver};
 pub use iterative::{IterativeParams, IterativeSolver, FALLBACK_DIRECT_MAX_DOFS};
 pub use lu::try_lu_solve_in_place;
@@ -48,8 +49,24 @@ pub struct DirectSolver {
 }
 
 impl DirectSolver {
+    /// Analyse `pattern` with the ordering in the environment variable
+    /// `HOCURVE_DIRECT_ORDERING` (`amd`, `nd` or `auto`; for benchmarks), else
+    /// [`DirectOrdering::Auto`].
     pub fn try_new(pattern: &SymmetricCsc) -> Result<DirectSolver> {
-        Ok(DirectSolver { chol: SparseCholesky::try_analyse(pattern)? })
+        let ordering = match std::env::var("HOCURVE_DIRECT_ORDERING") {
+            Ok(s) => DirectOrdering::parse(&s)?,
+            Err(_) => DirectOrdering::Auto,
+        };
+        Self::try_new_with(pattern, ordering)
+    }
+
+    pub fn try_new_with(pattern: &SymmetricCsc, ordering: DirectOrdering) -> Result<DirectSolver> {
+        Ok(DirectSolver { chol: SparseCholesky::try_analyse_with(pattern, ordering)? })
+    }
+
+    /// The symbolic analysis (ordering used, factor size).
+    pub fn cholesky(&self) -> &SparseCholesky {
+        &self.chol
     }
 }
 
