@@ -4,8 +4,9 @@
 //! # Fill-reducing ordering
 //!
 //! Two orderings ([`DirectOrdering`]): faer's AMD, or nested dissection by
-//! METIS (`METIS_NodeND`, built from the source vendored in the `metis-sys`
-//! crate with `cc`: no system METIS, no libclang) on the *node* graph (the
+//! METIS (`METIS_NodeND`; METIS 5.2.1 vendored in `third_party/metis`,
+//! compiled by `build.rs` with `hocurve_`-prefixed symbols so that hosts can
+//! link their own METIS; see `super::metis`) on the *node* graph (the
 //! pattern's `dim`-blocks: a node's free dofs are consecutive and every
 //! coupling is a full block, see [`node_block_size`]), expanded back to dofs
 //! with each node's dofs kept together. The node graph has dim² fewer edges
@@ -322,28 +323,8 @@ pub fn nested_dissection(pattern: &SymmetricCsc) -> Result<(Vec<usize>, Vec<usiz
         }
     }
     drop(fill);
-    let mut nvtxs = nn as i32;
-    let mut options = [0i32; metis_sys::METIS_NOPTIONS as usize];
-    let mut perm = vec![0i32; nn];
-    let mut iperm = vec![0i32; nn];
-    // SAFETY: the arrays have the lengths METIS_NodeND expects (options:
-    // METIS_NOPTIONS; xadj: nvtxs + 1; adjncy: xadj[nvtxs]; perm, iperm:
-    // nvtxs); vwgt may be null. METIS does not keep the pointers.
-    let status = unsafe {
-        metis_sys::METIS_SetDefaultOptions(options.as_mut_ptr());
-        metis_sys::METIS_NodeND(
-            &mut nvtxs,
-            xadj.as_mut_ptr(),
-            adjncy.as_mut_ptr(),
-            std::ptr::null_mut(),
-            options.as_mut_ptr(),
-            perm.as_mut_ptr(),
-            iperm.as_mut_ptr(),
-        )
-    };
-    if status != metis_sys::rstatus_et_METIS_OK {
-        return Err(Error::Solver(format!("METIS_NodeND failed (status {status})")));
-    }
+    let perm = super::metis::try_node_nd(&mut xadj, &mut adjncy)?;
+    drop((xadj, adjncy));
     // METIS: perm[new] = old node. Expand to dofs.
     let mut fwd = vec![0usize; pattern.n];
     let mut inv = vec![0usize; pattern.n];

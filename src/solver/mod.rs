@@ -13,6 +13,7 @@ mod cholesky;
 mod external;
 mod iterative;
 mod lu;
+mod metis;
 pub mod pcg;
 pub mod pmg;
 
