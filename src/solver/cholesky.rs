@@ -41,7 +41,7 @@
 //! ```
 //!
 //! Whole `hocurve bench-one ... --solver direct` runs (median of 3
-//! interleaved; `HOCURVE_DIRECT_ORDERING` forces the ordering): 3D p = 4,
+//! interleaved; `--direct-ordering amd|nd` forces the ordering): 3D p = 4,
 //! 59,682 unknowns, one increment: total 4.39 s → 3.24 s with ND, peak 565 →
 //! 523 MB; 3D p = 4, 17,322: 0.59 s → 0.56 s (a tie), 119 → 123 MB; 2D p = 4,
 //! 158,720, ten increments: 9.00 s → 7.36 s, 340 → 313 MB; 2D p = 2, 190,464,

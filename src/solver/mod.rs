@@ -50,17 +50,12 @@ pub struct DirectSolver {
 }
 
 impl DirectSolver {
-    /// Analyse `pattern` with the ordering in the environment variable
-    /// `HOCURVE_DIRECT_ORDERING` (`amd`, `nd` or `auto`; for benchmarks), else
-    /// [`DirectOrdering::Auto`].
+    /// Analyse `pattern` with the ordering [`DirectOrdering::Auto`] picks.
     pub fn try_new(pattern: &SymmetricCsc) -> Result<DirectSolver> {
-        let ordering = match std::env::var("HOCURVE_DIRECT_ORDERING") {
-            Ok(s) => DirectOrdering::parse(&s)?,
-            Err(_) => DirectOrdering::Auto,
-        };
-        Self::try_new_with(pattern, ordering)
+        Self::try_new_with(pattern, DirectOrdering::Auto)
     }
 
+    /// Analyse `pattern` with this fill-reducing ordering.
     pub fn try_new_with(pattern: &SymmetricCsc, ordering: DirectOrdering) -> Result<DirectSolver> {
         Ok(DirectSolver { chol: SparseCholesky::try_analyse_with(pattern, ordering)? })
     }
