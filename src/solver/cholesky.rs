@@ -47,6 +47,9 @@
 //! 158,720, ten increments: 9.00 s → 7.36 s, 340 → 313 MB; 2D p = 2, 190,464,
 //! ten increments: 9.00 s → 9.52 s (a tie within the noise), 310 → 289 MB,
 //! one increment 1.20 s → 1.54 s (METIS takes 2.7× AMD's time there).
+//! Re-measured with the renamed vendored METIS (medians, busier machine):
+//! same nnz(L); 3D p = 3 s = 3 factor+solve 0.99 → 0.47 s, p = 4 s = 3
+//! 3.46 → 2.37 s, whole run 4.84 → 3.86 s (bench/README.md).
 //!
 //! So ND wins where the mesh is wide in "stencil widths" (n over the mean
 //! column length, n² / nnz(A)): in 3D from about 300 (p = 2 at 17k unknowns,
