@@ -7,6 +7,7 @@
 #   PREFIX/include/hocurve.h, hocurve.hpp, hocurve.f90
 #   PREFIX/lib/cmake/hocurve/hocurveConfig.cmake, hocurveConfigVersion.cmake
 #   PREFIX/lib/pkgconfig/hocurve.pc
+#   PREFIX/share/doc/hocurve/metis/   (licence notices of the embedded METIS)
 #
 # Usage: scripts/install.sh PREFIX
 set -euo pipefail
@@ -55,6 +56,12 @@ install -m 644 "$target/libhocurve.a" "$prefix/lib/libhocurve.a"
 
 install -m 644 "$root/include/hocurve.h" "$root/include/hocurve.hpp" "$root/include/hocurve.f90" \
   "$prefix/include/"
+# The libraries embed METIS (Apache-2.0): its notices go with them.
+install -d "$prefix/share/doc/hocurve/metis"
+install -m 644 "$root/third_party/metis/README.md" "$root/third_party/metis/LICENSE-Apache-2.0.txt" \
+  "$prefix/share/doc/hocurve/metis/"
+install -m 644 "$root/third_party/metis/metis/LICENSE" "$prefix/share/doc/hocurve/metis/LICENSE-METIS"
+install -m 644 "$root/third_party/metis/GKlib/LICENSE.txt" "$prefix/share/doc/hocurve/metis/LICENSE-GKlib"
 
 subst() {
   sed -e "s|@VERSION@|$version|g" -e "s|@VERSION_MAJOR@|$major|g" -e "s|@VERSION_MINOR@|$minor|g" \

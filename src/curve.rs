@@ -18,8 +18,8 @@ use crate::quadrature::simplex_rule;
 use crate::quality::{self, ElementQuality, MeshQuality};
 use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
 use crate::solver::{
-    DirectSolver, ExternalAdapter, IterativeParams, IterativeSolver, LinearSolver, SolverChoice, SymmetricCsc,
-    AUTO_DIRECT_MAX_DOFS,
+    DirectOrdering, DirectSolver, ExternalAdapter, IterativeParams, IterativeSolver, LinearSolver, SolverChoice,
+    SymmetricCsc, AUTO_DIRECT_MAX_DOFS,
 };
 use crate::{Error, Result};
 
@@ -87,6 +87,9 @@ pub struct CurveOptions {
     pub fibres: Option<Vec<[f64; 3]>>,
     /// Linear solver of every increment (default: chosen by size).
     pub solver: SolverChoice,
+    /// Fill-reducing ordering of the direct solver (default
+    /// [`DirectOrdering::Auto`]: nested dissection or AMD, as measured).
+    pub direct_ordering: DirectOrdering,
     /// Remove the boundary caps of a 3D mesh before curving (default on): tets
     /// with two faces on one smooth surface, which no curving keeps valid
     /// (see [`crate::mesh::caps`]). The curved mesh then has fewer cells.
@@ -134,6 +137,7 @@ impl Default for CurveOptions {
             max_iterations: 30,
             fibres: None,
             solver: SolverChoice::Auto,
+            direct_ordering: DirectOrdering::Auto,
             remove_caps: true,
             adaptive: None,
             max_splits: DEFAULT_MAX_SPLITS,
@@ -337,6 +341,7 @@ pub fn curve(
         residual: matches!(opts.formulation, Formulation::Iil | Formulation::Cil),
         newton: (opts.formulation == Formulation::Nonlinear).then_some((opts.tolerance, opts.max_iterations)),
         solver: opts.solver.clone(),
+        direct_ordering: opts.direct_ordering,
         adaptive: opts.adaptive_enabled(),
         max_splits: opts.max_splits,
         condense: opts.condense,
@@ -415,6 +420,8 @@ pub struct Stepping {
     /// Newton–Raphson to ‖R_f‖/‖R_0‖ < tolerance in at most max_iterations (NONLINEAR).
     pub newton: Option<(f64, usize)>,
     pub solver: SolverChoice,
+    /// Fill-reducing ordering of the direct solver.
+    pub direct_ordering: DirectOrdering,
     /// Adaptive load stepping: step back and halve an increment that makes a
     /// cell invalid (certified check, [`quality::ValidityCheck`]) or whose
     /// assembly or Newton iteration fails.
@@ -435,6 +442,7 @@ impl Stepping {
             residual: false,
             newton: None,
             solver: SolverChoice::Auto,
+            direct_ordering: DirectOrdering::Auto,
             adaptive: true,
             max_splits: DEFAULT_MAX_SPLITS,
             condense: false,
@@ -521,9 +529,11 @@ impl IncrementsReport {
 }
 
 /// The solver `choice` asks for, set up for this mesh and pattern. `Auto`:
-/// direct in 2D and up to [`AUTO_DIRECT_MAX_DOFS`] unknowns in 3D, iterative above.
+/// direct in 2D and up to [`AUTO_DIRECT_MAX_DOFS`] unknowns in 3D, iterative
+/// above. The direct solver orders with `ordering`.
 fn make_solver(
     choice: SolverChoice,
+    ordering: DirectOrdering,
     mesh: &HighOrderMesh,
     dofs: &DofMap,
     pattern: &SymmetricCsc,
@@ -535,7 +545,7 @@ fn make_solver(
         SolverChoice::Auto => mesh.dim() == 3 && pattern.n > AUTO_DIRECT_MAX_DOFS,
     };
     if !iterative {
-        return Ok(Box::new(DirectSolver::try_new(pattern)?));
+        return Ok(Box::new(DirectSolver::try_new_with(pattern, ordering)?));
     }
     // The free dofs of a node are consecutive: nodal blocks for the smoother.
     let levels = multigrid_levels(mesh, dofs);
@@ -649,7 +659,7 @@ fn step_through<K: ElementKernel>(
     let t = Instant::now();
     let pattern = dofs.pattern(mesh);
     let plan = AssemblyPlan::new(mesh, dofs, &pattern);
-    let mut solver = make_solver(stepping.solver.clone(), mesh, dofs, &pattern)?;
+    let mut solver = make_solver(stepping.solver.clone(), stepping.direct_ordering, mesh, dofs, &pattern)?;
     out.linear_solver = solver.name();
     let check = stepping.adaptive.then(|| {
         quality::ValidityCheck::new(LagrangeBasis::new(&NodeSet::new(mesh.simplex, mesh.order, mesh.spacing)))

@@ -2,7 +2,8 @@
 //!
 //! [`SymmetricCsc`] holds the lower triangle of a symmetric sparse matrix in
 //! compressed-column form; [`SparseCholesky`] does the symbolic analysis (fill-
-//! reducing AMD ordering and elimination tree) once and the numeric
+//! reducing ordering, AMD or nested dissection, see [`DirectOrdering`], and
+//! elimination tree) once and the numeric
 //! factorisation for every new set of values on the same pattern.
 //! [`ExternalAdapter`] hands each system to a solver of the host's
 //! ([`SystemSolver`]) as a full CSR matrix.
@@ -12,10 +13,11 @@ mod cholesky;
 mod external;
 mod iterative;
 mod lu;
+mod metis;
 pub mod pcg;
 pub mod pmg;
 
-pub use cholesky::SparseCholesky;
+pub use cholesky::{nested_dissection, node_block_size, DirectOrdering, SparseCholesky};
 pub use external::{CsrView, ExternalAdapter, ExternalSolver, FullCsrPattern, SystemSolver};
 pub use iterative::{IterativeParams, IterativeSolver, FALLBACK_DIRECT_MAX_DOFS};
 pub use lu::try_lu_solve_in_place;
@@ -48,8 +50,19 @@ pub struct DirectSolver {
 }
 
 impl DirectSolver {
+    /// Analyse `pattern` with the ordering [`DirectOrdering::Auto`] picks.
     pub fn try_new(pattern: &SymmetricCsc) -> Result<DirectSolver> {
-        Ok(DirectSolver { chol: SparseCholesky::try_analyse(pattern)? })
+        Self::try_new_with(pattern, DirectOrdering::Auto)
+    }
+
+    /// Analyse `pattern` with this fill-reducing ordering.
+    pub fn try_new_with(pattern: &SymmetricCsc, ordering: DirectOrdering) -> Result<DirectSolver> {
+        Ok(DirectSolver { chol: SparseCholesky::try_analyse_with(pattern, ordering)? })
+    }
+
+    /// The symbolic analysis (ordering used, factor size).
+    pub fn cholesky(&self) -> &SparseCholesky {
+        &self.chol
     }
 }
 

@@ -20,7 +20,7 @@ use std::time::Instant;
 use hocurve::cases::{self, Case};
 use hocurve::curve::{curve, CurveOptions, Formulation};
 use hocurve::mesh::Topology;
-use hocurve::solver::SolverChoice;
+use hocurve::solver::{DirectOrdering, SolverChoice};
 use hocurve::{Error, Result};
 
 use crate::{write_text_atomic, Args};
@@ -200,10 +200,11 @@ fn peak_rss_mb() -> f64 {
         .unwrap_or(f64::NAN)
 }
 
-/// `hocurve bench-one --dim D --order P --size K [--increments N] [--solver S]`:
-/// curve one case and print one [`Row::to_line`] on stdout.
+/// `hocurve bench-one --dim D --order P --size K [--increments N] [--solver S]
+/// [--direct-ordering amd|nd|auto] [--condense on|off]`: curve one case and print one
+/// [`Row::to_line`] on stdout.
 pub fn cmd_bench_one(argv: &[String]) -> Result<()> {
-    let args = Args::parse(argv, &["dim", "order", "size", "increments", "solver", "condense"])?;
+    let args = Args::parse(argv, &["dim", "order", "size", "increments", "solver", "direct-ordering", "condense"])?;
     let dim: usize = args.number("dim", 2)?;
     let size: usize = args.number("size", LADDER_2D[0])?;
     let case = bench_case(dim, size)?;
@@ -219,6 +220,9 @@ pub fn cmd_bench_one(argv: &[String]) -> Result<()> {
     };
     if let Some(s) = args.get("solver") {
         opts.solver = SolverChoice::parse(s)?;
+    }
+    if let Some(s) = args.get("direct-ordering") {
+        opts.direct_ordering = DirectOrdering::parse(s)?;
     }
     opts.condense = args.on_off("condense")?.unwrap_or(opts.condense);
     hocurve::curve::validate_options(&opts)?;

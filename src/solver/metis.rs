@@ -1,0 +1,79 @@
+//! The one METIS call of the crate: `METIS_NodeND`, nested dissection of a
+//! graph.
+//!
+//! METIS 5.2.1 and GKlib are vendored in `third_party/metis` and compiled by
+//! `build.rs` with 32-bit `idx_t` and every global symbol renamed
+//! `hocurve_<name>` (`third_party/metis/hocurve_metis_rename.h`), so a host
+//! may link its own METIS beside libhocurve; hence the `link_name`s below.
+
+use std::os::raw::c_int;
+use std::sync::Mutex;
+
+use crate::{Error, Result};
+
+/// METIS's `idx_t` as compiled by `build.rs` (`IDXTYPEWIDTH=32`).
+type Idx = i32;
+
+/// `METIS_NOPTIONS` of metis.h.
+const METIS_NOPTIONS: usize = 40;
+/// `METIS_OK` of metis.h's `rstatus_et`.
+const METIS_OK: c_int = 1;
+
+extern "C" {
+    #[link_name = "hocurve_METIS_SetDefaultOptions"]
+    fn metis_set_default_options(options: *mut Idx) -> c_int;
+
+    #[link_name = "hocurve_METIS_NodeND"]
+    fn metis_node_nd(
+        nvtxs: *mut Idx,
+        xadj: *mut Idx,
+        adjncy: *mut Idx,
+        vwgt: *mut Idx,
+        options: *mut Idx,
+        perm: *mut Idx,
+        iperm: *mut Idx,
+    ) -> c_int;
+}
+
+/// METIS installs process-wide SIGABRT/SIGTERM handlers for the length of a
+/// call and restores the previous ones after; two concurrent calls would
+/// restore them out of order. One call at a time within this library.
+static METIS_LOCK: Mutex<()> = Mutex::new(());
+
+/// Nested-dissection ordering of the graph in CSR form (`xadj`: n + 1
+/// offsets; `adjncy`: neighbours, both directions of every edge, no self
+/// loops; n ≥ 1). Returns `perm` with `perm[new] = old`.
+pub fn try_node_nd(xadj: &mut [Idx], adjncy: &mut [Idx]) -> Result<Vec<Idx>> {
+    let n = xadj
+        .len()
+        .checked_sub(1)
+        .filter(|&n| n > 0)
+        .ok_or_else(|| Error::Solver("METIS_NodeND: empty graph".into()))?;
+    if n > Idx::MAX as usize || xadj[n] as usize != adjncy.len() {
+        return Err(Error::Solver("METIS_NodeND: malformed graph".into()));
+    }
+    let mut nvtxs = n as Idx;
+    let mut options = [0 as Idx; METIS_NOPTIONS];
+    let mut perm = vec![0 as Idx; n];
+    let mut iperm = vec![0 as Idx; n];
+    let _guard = METIS_LOCK.lock().unwrap_or_else(|e| e.into_inner());
+    // SAFETY: the arrays have the lengths METIS_NodeND expects (options:
+    // METIS_NOPTIONS; xadj: nvtxs + 1; adjncy: xadj[nvtxs]; perm, iperm:
+    // nvtxs); vwgt may be null. METIS does not keep the pointers.
+    let status = unsafe {
+        metis_set_default_options(options.as_mut_ptr());
+        metis_node_nd(
+            &mut nvtxs,
+            xadj.as_mut_ptr(),
+            adjncy.as_mut_ptr(),
+            std::ptr::null_mut(),
+            options.as_mut_ptr(),
+            perm.as_mut_ptr(),
+            iperm.as_mut_ptr(),
+        )
+    };
+    if status != METIS_OK {
+        return Err(Error::Solver(format!("METIS_NodeND failed (status {status})")));
+    }
+    Ok(perm)
+}
