@@ -8,7 +8,8 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use crate::assembly::{
-    assemble, multigrid_levels, AssemblyPlan, DofMap, ElementKernel, LinearElasticKernel, MaterialKernel, TangentMode,
+    assemble_into, multigrid_levels, Assembled, AssemblyPlan, DofMap, ElementKernel, LinearElasticKernel,
+    MaterialKernel, TangentMode,
 };
 use crate::geometry::Projector;
 use crate::mapping::ElementCache;
@@ -665,7 +666,8 @@ fn step_through<K: ElementKernel>(
         quality::ValidityCheck::new(LagrangeBasis::new(&NodeSet::new(mesh.simplex, mesh.order, mesh.spacing)))
     });
     timings.setup += t.elapsed().as_secs_f64();
-    let ctx = IncrementContext {
+    let mut ctx = IncrementContext {
+        system: Assembled::default(),
         dofs,
         pattern: &pattern,
         plan: &plan,
@@ -770,6 +772,8 @@ fn step_through<K: ElementKernel>(
 
 /// What one increment needs besides the geometry.
 struct IncrementContext<'a, K> {
+    /// The last assembled system; its buffers are reused.
+    system: Assembled,
     dofs: &'a DofMap,
     pattern: &'a SymmetricCsc,
     plan: &'a AssemblyPlan,
@@ -786,7 +790,7 @@ impl<K: ElementKernel> IncrementContext<'_, K> {
     /// c was already invalid at the start.
     #[allow(clippy::too_many_arguments)]
     fn attempt(
-        &self,
+        &mut self,
         mesh: &mut HighOrderMesh,
         solver: &mut dyn LinearSolver,
         step: &[f64],
@@ -800,7 +804,8 @@ impl<K: ElementKernel> IncrementContext<'_, K> {
         let dofs = self.dofs;
         let t = Instant::now();
         // det J ≤ 0 here is at the start geometry: no split of this increment helps.
-        let system = assemble(mesh, &mesh.coords, dofs, self.pattern, self.plan, self.kernel, step, self.residual)
+        let system = &mut self.system;
+        assemble_into(mesh, &mesh.coords, dofs, self.pattern, self.plan, self.kernel, step, self.residual, system)
             .map_err(|e| match e {
                 Error::InvalidElement(detail) => Failure::AtStart(detail),
                 e => Failure::Fatal(e),
@@ -823,15 +828,13 @@ impl<K: ElementKernel> IncrementContext<'_, K> {
             let mut converged = false;
             for _ in 0..max_iterations {
                 let t = Instant::now();
-                let assembled = assemble(mesh, &mesh.coords, dofs, self.pattern, self.plan, self.kernel, &zero, true);
+                let assembled =
+                    assemble_into(mesh, &mesh.coords, dofs, self.pattern, self.plan, self.kernel, &zero, true, system);
                 timings.assembly += t.elapsed().as_secs_f64();
-                let system = match assembled {
-                    Ok(a) => a,
-                    Err(e) => {
-                        out.newton_history.push(hist);
-                        return Err(e.into());
-                    }
-                };
+                if let Err(e) = assembled {
+                    out.newton_history.push(hist);
+                    return Err(e.into());
+                }
                 let ratio = system.rhs_norm / r0;
                 hist.push(ratio);
                 if !ratio.is_finite() {
