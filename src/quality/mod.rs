@@ -78,7 +78,7 @@ pub struct MeshQuality {
     pub histogram: [usize; HISTOGRAM_BINS],
     /// A lower bound of min Q3 over the whole of every element (not only the
     /// samples), from the Bernstein bounds of det J ([`certified`]); NaN when
-    /// not computed (orders above the expansion limit).
+    /// not computed.
     pub certified_min_q3: f64,
     /// Elements with det J ≤ 0 at some point, found by the certified check.
     pub n_certified_invalid: usize,
@@ -204,23 +204,29 @@ fn map_cells<T: Send>(
         .collect()
 }
 
-/// Certified det J bounds of every cell ([`certified`]); None above the
-/// expansion limit ([`certified::MAX_LATTICE_POINTS`]).
-pub fn certify_cells(basis: &LagrangeBasis, coords: &[f64], cells: &[usize]) -> Option<Vec<CertifiedJacobian>> {
-    let jb = JacobianBernstein::new(basis)?;
-    Some(map_cells(coords, cells, basis.len(), basis.simplex().dim(), |_, xe| jb.certify(basis, xe)))
+/// Certified det J bounds of every cell ([`certified`]), any order.
+pub fn certify_cells(basis: &LagrangeBasis, coords: &[f64], cells: &[usize]) -> Vec<CertifiedJacobian> {
+    JacobianBernstein::new(basis).certify_cells(coords, cells)
+}
+
+impl JacobianBernstein {
+    /// [`JacobianBernstein::certify`] on every cell of the mesh (`coords`,
+    /// `cells` in this expansion's basis), in parallel.
+    pub fn certify_cells(&self, coords: &[f64], cells: &[usize]) -> Vec<CertifiedJacobian> {
+        let (npc, dim) = (self.n_nodes(), self.dim());
+        map_cells(coords, cells, npc, dim, |_, xe| self.certify(xe))
+    }
 }
 
 /// The checks of adaptive load stepping after an increment ([`crate::curve`]).
 ///
 /// *Certified*: [`JacobianBernstein::certify`], det J ≤ 0 somewhere in the
-/// element (an [`Verdict::Uncertain`] cell is not counted); above the
-/// expansion limit (order 8 and more in 3D) it falls back to the sampled one.
+/// element (an [`Verdict::Uncertain`] cell is not counted), at every order.
 /// *Sampled*: det J ≤ 0 at a point of the quadrature rule of degree 2p, the
 /// points the assembly sees; about a sixth of the certified cost at p = 4 in 3D.
 pub struct ValidityCheck {
     basis: LagrangeBasis,
-    certified: Option<JacobianBernstein>,
+    certified: JacobianBernstein,
     points: ElementCache,
 }
 
@@ -231,30 +237,21 @@ impl ValidityCheck {
         ValidityCheck { basis, certified, points }
     }
 
-    /// Whether the certified check is available (otherwise it is the sampled one).
-    pub fn has_certified(&self) -> bool {
-        self.certified.is_some()
-    }
-
     /// Whether the element with node coordinates `xe` is invalid.
     pub fn element_is_invalid(&self, xe: &[f64], certified: bool) -> bool {
-        match &self.certified {
-            Some(jb) if certified => jb.certify(&self.basis, xe).verdict == Verdict::Invalid,
-            _ => {
-                let dim = self.basis.simplex().dim();
-                (0..self.points.n_points()).any(|q| {
-                    let j = mapping::det(dim, &mapping::jacobian(dim, xe, self.points.grads_at(q)));
-                    j.is_nan() || j <= 0.0
-                })
-            }
+        if certified {
+            return self.certified.certify(xe).verdict == Verdict::Invalid;
         }
+        let dim = self.basis.simplex().dim();
+        (0..self.points.n_points()).any(|q| {
+            let j = mapping::det(dim, &mapping::jacobian(dim, xe, self.points.grads_at(q)));
+            j.is_nan() || j <= 0.0
+        })
     }
 
-    /// The certified bounds of every cell ([`certify_cells`]); None above the
-    /// certified check's order limit.
-    pub fn certify_cells(&self, coords: &[f64], cells: &[usize]) -> Option<Vec<CertifiedJacobian>> {
-        self.certified.as_ref()?;
-        certify_cells(&self.basis, coords, cells)
+    /// The certified bounds of every cell ([`certify_cells`]).
+    pub fn certify_cells(&self, coords: &[f64], cells: &[usize]) -> Vec<CertifiedJacobian> {
+        self.certified.certify_cells(coords, cells)
     }
 
     /// Indices of the invalid cells of the mesh (`coords`, `cells`), in order.

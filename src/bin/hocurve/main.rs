@@ -381,9 +381,7 @@ fn cmd_quality(argv: &[String]) -> Result<()> {
     let basis = LagrangeBasis::new(&nodes);
     let cache = quality::sampling_cache(&basis);
     let mut q = quality::summarize(&quality::cell_qualities(&cache, &coords, &cells, None));
-    if let Some(certified) = quality::certify_cells(&basis, &coords, &cells) {
-        quality::add_certified(&mut q, &certified);
-    }
+    quality::add_certified(&mut q, &quality::certify_cells(&basis, &coords, &cells));
     let body = format!(
         "{{\n  \"file\": \"{}\",\n  \"order\": {order},\n  \"cells\": {},\n  \"nodes\": {},\n{}\n}}",
         json_escape(&input.display().to_string()),
