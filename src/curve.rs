@@ -355,7 +355,9 @@ pub fn curve(
     let t = Instant::now();
     tick(Stage::Quality, 0, 1)?;
     let ti = opts.material.is_transversely_isotropic().then_some(&fibres[..]);
-    let cell_quality = quality::cell_qualities(&quality::sampling_cache(&basis), &mesh.coords, &mesh.cells, ti);
+    // Q1, Q2 against the straight mesh's elements (the curving may move vertices).
+    let cache = quality::sampling_cache(&basis);
+    let cell_quality = quality::cell_qualities(&cache, &mesh.coords, Some(&straight), &mesh.cells, ti);
     let mut q = quality::summarize(&cell_quality);
     let certified = solved.certified.unwrap_or_else(|| quality::certify_cells(&basis, &mesh.coords, &mesh.cells));
     quality::add_certified(&mut q, &certified);

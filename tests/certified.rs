@@ -1,6 +1,8 @@
 //! Certified validity (issue 7): the Bernstein bounds of det J never claim more
 //! than the samples show, and they catch an element inverted between samples.
 
+use hocurve::cases;
+use hocurve::curve::{curve, CurveOptions, Formulation};
 use hocurve::mapping;
 use hocurve::quality::{element_quality, sampling_cache, JacobianBernstein, Verdict};
 use hocurve::reference::{LagrangeBasis, NodeSet, NodeSpacing, Simplex};
@@ -57,7 +59,7 @@ fn certified_minimum_never_exceeds_the_sampled_one() {
         for _ in 0..count {
             let dir = random_dir(&basis, &mut seed);
             let xe = element(&basis, &dir, 0.25 * lcg(&mut seed));
-            let sampled = element_quality(&cache, &xe, None);
+            let sampled = element_quality(&cache, &xe, &xe, None);
             let c = jb.certify(&xe);
             assert!(
                 c.q3_lower() <= sampled.q3 + 1e-12,
@@ -91,7 +93,7 @@ fn an_element_inverted_between_the_samples_is_caught() {
             continue;
         };
         let xe = element(&basis, &dir, k as f64 / steps as f64);
-        let sampled = element_quality(&cache, &xe, None);
+        let sampled = element_quality(&cache, &xe, &xe, None);
         if sampled.q3 <= 0.0 {
             continue;
         }
@@ -195,12 +197,32 @@ fn high_order_tets_are_certified_with_finite_bounds() {
         };
         let xe = smooth(0.03);
         let c = jb.certify(&xe);
-        let sampled = element_quality(&cache, &xe, None);
+        let sampled = element_quality(&cache, &xe, &xe, None);
         println!("p={p}: certified {c:?}, Q3 >= {:.4}; sampled Q3 {:.4}", c.q3_lower(), sampled.q3);
         assert_eq!(c.verdict, Verdict::Valid, "p={p}: {c:?}");
         assert!(c.q3_lower() > 0.0 && c.q3_lower() <= sampled.q3 + 1e-12, "p={p}");
         let folded = smooth(0.2);
-        assert!(element_quality(&cache, &folded, None).q3 <= 0.0, "the test element should fold");
+        assert!(element_quality(&cache, &folded, &folded, None).q3 <= 0.0, "the test element should fold");
         assert_eq!(jb.certify(&folded).verdict, Verdict::Invalid, "p={p}");
     }
+}
+
+#[test]
+fn a_curved_sphere_shell_at_order_8_is_certified_end_to_end() {
+    // Before the exact expansion, order 8 in 3D reported NaN here.
+    let case = cases::spherical_shell_3d(0.5, 1.0, 2, 1);
+    let mut mesh = case.mesh.clone();
+    mesh.retain_tags(|dim, tag| case.projector.get(dim, tag).is_some());
+    let opts = CurveOptions { order: 8, formulation: Formulation::Linear, ..Default::default() };
+    let curved = curve(&mesh, &case.projector, &opts, &mut |_| true).unwrap();
+    let q = &curved.report.quality;
+    println!(
+        "p=8, {} cells: sampled min Q3 {:.4} ({} invalid), certified min Q3 {:.4} ({} invalid, {} uncertain)",
+        curved.report.cells, q.min_q3, q.n_invalid, q.certified_min_q3, q.n_certified_invalid, q.n_uncertain
+    );
+    assert!(q.certified_min_q3.is_finite(), "certified min Q3 {}", q.certified_min_q3);
+    assert!(q.certified_min_q3 <= q.min_q3 + 1e-12, "certified {} above sampled {}", q.certified_min_q3, q.min_q3);
+    assert_eq!(q.n_invalid, 0);
+    assert_eq!(q.n_certified_invalid + q.n_uncertain, 0);
+    assert!(q.certified_min_q3 > 0.0);
 }
