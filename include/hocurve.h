@@ -113,8 +113,8 @@ typedef struct {
   size_t n_cells;
   /**
    * A lower bound of Q3 over the whole of every element (Bernstein bounds
-   * of det J, not only samples): ≤ min_q3. NaN when not computed (before a
-   * run, or orders above 7 in 3D).
+   * of det J, not only samples): ≤ min_q3, at every order. NaN when not
+   * computed (before a run).
    */
   double certified_min_q3;
   /**

@@ -375,11 +375,12 @@ pub fn curve(
     let t = Instant::now();
     tick(Stage::Quality, 0, 1)?;
     let ti = opts.material.is_transversely_isotropic().then_some(&fibres[..]);
-    let cell_quality = quality::cell_qualities(&quality::sampling_cache(&basis), &mesh.coords, &mesh.cells, ti);
+    // Q1, Q2 against the straight mesh's elements (the curving may move vertices).
+    let cache = quality::sampling_cache(&basis);
+    let cell_quality = quality::cell_qualities(&cache, &mesh.coords, Some(&straight), &mesh.cells, ti);
     let mut q = quality::summarize(&cell_quality);
-    if let Some(certified) = solved.certified.or_else(|| quality::certify_cells(&basis, &mesh.coords, &mesh.cells)) {
-        quality::add_certified(&mut q, &certified);
-    }
+    let certified = solved.certified.unwrap_or_else(|| quality::certify_cells(&basis, &mesh.coords, &mesh.cells));
+    quality::add_certified(&mut q, &certified);
     timings.quality = t.elapsed().as_secs_f64();
     timings.total = t0.elapsed().as_secs_f64();
     let report = CurveReport {
@@ -455,8 +456,8 @@ impl Stepping {
 #[non_exhaustive]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum StepBackReason {
-    /// An assembly on the new geometry met det J ≤ 0 at a quadrature point
-    /// (or, above the certified check's order limit, at a sample point).
+    /// An assembly on the new geometry, or the sampled check after an
+    /// increment, met det J ≤ 0 at a quadrature point.
     SampledInvalid,
     /// The certified check found a cell with det J ≤ 0 somewhere after the increment.
     CertifiedInvalid,
@@ -883,7 +884,7 @@ impl<K: ElementKernel> IncrementContext<'_, K> {
         let (mut new, mut old) = (None, None);
         // Certified: the bounds of every cell are kept for the quality stage,
         // which would otherwise compute them again on the final mesh.
-        out.certified = if certified { check.certify_cells(&mesh.coords, &mesh.cells) } else { None };
+        out.certified = certified.then(|| check.certify_cells(&mesh.coords, &mesh.cells));
         let invalid: Vec<usize> = match &out.certified {
             Some(cells) => (0..cells.len()).filter(|&c| cells[c].verdict == quality::Verdict::Invalid).collect(),
             None => check.invalid_cells(&mesh.coords, &mesh.cells, certified),
@@ -898,7 +899,7 @@ impl<K: ElementKernel> IncrementContext<'_, K> {
         }
         timings.check += t.elapsed().as_secs_f64();
         match new {
-            Some(c) if certified && check.has_certified() => Err(Failure::Retry {
+            Some(c) if certified => Err(Failure::Retry {
                 reason: StepBackReason::CertifiedInvalid,
                 cell: Some(c),
                 detail: format!("cell {c} is inverted (certified: det J <= 0 somewhere in it)"),

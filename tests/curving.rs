@@ -85,5 +85,5 @@ fn naive_invalid(c: &CurvedMesh) -> usize {
     }
     let nodes = NodeSet::new(m.simplex, m.order, m.spacing);
     let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(m.simplex, 2 * m.order));
-    quality::summarize(&quality::cell_qualities(&cache, &coords, &m.cells, None)).n_invalid
+    quality::summarize(&quality::cell_qualities(&cache, &coords, None, &m.cells, None)).n_invalid
 }

@@ -124,8 +124,8 @@ pub struct HocQuality {
     pub n_invalid: usize,
     pub n_cells: usize,
     /// A lower bound of Q3 over the whole of every element (Bernstein bounds
-    /// of det J, not only samples): ≤ min_q3. NaN when not computed (before a
-    /// run, or orders above 7 in 3D).
+    /// of det J, not only samples): ≤ min_q3, at every order. NaN when not
+    /// computed (before a run).
     pub certified_min_q3: f64,
     /// Cells with det J ≤ 0 at some point, found by the certified check.
     pub n_certified_invalid: usize,

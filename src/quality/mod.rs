@@ -2,7 +2,11 @@
 //!
 //! For an element e with straight-sided (affine) configuration X and curved
 //! configuration x, F = ∂x/∂X = (∂x/∂ξ)(∂X/∂ξ)⁻¹ at each quadrature point of
-//! a rule exact to degree 2p. With I1 = F:F, I2 = H:H (H = cof F), J = det F:
+//! a rule exact to degree 2p. X is the element of the straight (linear input)
+//! mesh, as the curving sees it: the curving may move vertices (interior
+//! ones by the elastic solve, or the one a removed boundary cap added), and
+//! F then includes that motion. Without a straight mesh (a curved mesh read
+//! from a file), X is the straight element through the curved vertices. With I1 = F:F, I2 = H:H (H = cof F), J = det F:
 //!
 //! Q_j = sqrt(min I_j / max I_j), j = 1, 2, and Q3 = min J / max J (the
 //! scaled Jacobian). If J ≤ 0 somewhere the element is invalid and
@@ -78,7 +82,7 @@ pub struct MeshQuality {
     pub histogram: [usize; HISTOGRAM_BINS],
     /// A lower bound of min Q3 over the whole of every element (not only the
     /// samples), from the Bernstein bounds of det J ([`certified`]); NaN when
-    /// not computed (orders above the expansion limit).
+    /// not computed.
     pub certified_min_q3: f64,
     /// Elements with det J ≤ 0 at some point, found by the certified check.
     pub n_certified_invalid: usize,
@@ -87,14 +91,17 @@ pub struct MeshQuality {
 }
 
 /// Quality of one element with node coordinates `xe` (`dim` components per
-/// node, native ordering, the first dim+1 nodes being the vertices), with
-/// Q4 and Q5 when a unit `fibre` N is given.
-pub fn element_quality(cache: &ElementCache, xe: &[f64], fibre: Option<&[f64; 3]>) -> ElementQuality {
+/// node, native ordering, the first dim+1 nodes being the vertices) against
+/// the straight element whose vertices are the first dim+1 nodes of `xs`
+/// (the straight mesh's element; `xe` itself to measure against the straight
+/// element through the curved vertices), with Q4 and Q5 when a unit `fibre`
+/// N is given.
+pub fn element_quality(cache: &ElementCache, xe: &[f64], xs: &[f64], fibre: Option<&[f64; 3]>) -> ElementQuality {
     let dim = cache.dim;
     let xv: Vec<[f64; 3]> = (0..=dim)
         .map(|a| {
             let mut v = [0.0; 3];
-            v[..dim].copy_from_slice(&xe[a * dim..(a + 1) * dim]);
+            v[..dim].copy_from_slice(&xs[a * dim..(a + 1) * dim]);
             v
         })
         .collect();
@@ -115,10 +122,10 @@ pub fn element_quality(cache: &ElementCache, xe: &[f64], fibre: Option<&[f64; 3]
             }
         }
         // Q3 from det ∂x/∂ξ itself: the scaled Jacobian is a ratio, so the
-        // affine factor of the vertices cancels, and it must not set the sign:
-        // an interior vertex moved by the curving (one that a removed boundary
-        // cap added) can leave the vertices' straight tet inverted under an
-        // element that is valid everywhere.
+        // affine factor of X cancels, and it must not set the sign: when X is
+        // taken through the curved vertices, an interior vertex moved by the
+        // curving (one that a removed boundary cap added) can leave that
+        // straight tet inverted under an element that is valid everywhere.
         let j = mapping::det(dim, &dxdxi);
         if let Some(n) = fibre {
             // I4 = FN·FN, I5 = FᵀFN·FᵀFN (2D: in-plane part of N; F33 = 1).
@@ -171,15 +178,34 @@ pub fn element_quality(cache: &ElementCache, xe: &[f64], fibre: Option<&[f64; 3]
     q
 }
 
-/// Quality of every cell of a mesh given its coordinates and connectivity
-/// (and per-cell fibres for Q4, Q5).
+/// Quality of every cell of a mesh given its coordinates and connectivity,
+/// against the `straight` mesh (same nodes and cells, straight-sided
+/// positions; None: the straight elements through the curved vertices), and
+/// per-cell fibres for Q4, Q5.
 pub fn cell_qualities(
     cache: &ElementCache,
     coords: &[f64],
+    straight: Option<&[f64]>,
     cells: &[usize],
     fibres: Option<&[[f64; 3]]>,
 ) -> Vec<ElementQuality> {
-    map_cells(coords, cells, cache.n_basis, cache.dim, |c, xe| element_quality(cache, xe, fibres.map(|f| &f[c])))
+    let (npc, dim) = (cache.n_basis, cache.dim);
+    let fibre = |c: usize| fibres.map(|f| &f[c]);
+    let Some(straight) = straight else {
+        return map_cells(coords, cells, npc, dim, |c, xe| element_quality(cache, xe, xe, fibre(c)));
+    };
+    cells
+        .par_chunks_exact(npc)
+        .enumerate()
+        .map_init(
+            || (vec![0.0; npc * dim], vec![0.0; npc * dim]),
+            |(xe, xs), (c, cell)| {
+                gather_into(coords, cell, dim, xe);
+                gather_into(straight, cell, dim, xs);
+                element_quality(cache, xe, xs, fibre(c))
+            },
+        )
+        .collect()
 }
 
 /// `f(c, xe)` for every cell c (in parallel, in order), xe being its node
@@ -204,23 +230,29 @@ fn map_cells<T: Send>(
         .collect()
 }
 
-/// Certified det J bounds of every cell ([`certified`]); None above the
-/// expansion limit ([`certified::MAX_LATTICE_POINTS`]).
-pub fn certify_cells(basis: &LagrangeBasis, coords: &[f64], cells: &[usize]) -> Option<Vec<CertifiedJacobian>> {
-    let jb = JacobianBernstein::new(basis)?;
-    Some(map_cells(coords, cells, basis.len(), basis.simplex().dim(), |_, xe| jb.certify(basis, xe)))
+/// Certified det J bounds of every cell ([`certified`]), any order.
+pub fn certify_cells(basis: &LagrangeBasis, coords: &[f64], cells: &[usize]) -> Vec<CertifiedJacobian> {
+    JacobianBernstein::new(basis).certify_cells(coords, cells)
+}
+
+impl JacobianBernstein {
+    /// [`JacobianBernstein::certify`] on every cell of the mesh (`coords`,
+    /// `cells` in this expansion's basis), in parallel.
+    pub fn certify_cells(&self, coords: &[f64], cells: &[usize]) -> Vec<CertifiedJacobian> {
+        let (npc, dim) = (self.n_nodes(), self.dim());
+        map_cells(coords, cells, npc, dim, |_, xe| self.certify(xe))
+    }
 }
 
 /// The checks of adaptive load stepping after an increment ([`crate::curve`]).
 ///
 /// *Certified*: [`JacobianBernstein::certify`], det J ≤ 0 somewhere in the
-/// element (an [`Verdict::Uncertain`] cell is not counted); above the
-/// expansion limit (order 8 and more in 3D) it falls back to the sampled one.
+/// element (an [`Verdict::Uncertain`] cell is not counted), at every order.
 /// *Sampled*: det J ≤ 0 at a point of the quadrature rule of degree 2p, the
-/// points the assembly sees; about a sixth of the certified cost at p = 4 in 3D.
+/// points the assembly sees.
 pub struct ValidityCheck {
     basis: LagrangeBasis,
-    certified: Option<JacobianBernstein>,
+    certified: JacobianBernstein,
     points: ElementCache,
 }
 
@@ -231,30 +263,21 @@ impl ValidityCheck {
         ValidityCheck { basis, certified, points }
     }
 
-    /// Whether the certified check is available (otherwise it is the sampled one).
-    pub fn has_certified(&self) -> bool {
-        self.certified.is_some()
-    }
-
     /// Whether the element with node coordinates `xe` is invalid.
     pub fn element_is_invalid(&self, xe: &[f64], certified: bool) -> bool {
-        match &self.certified {
-            Some(jb) if certified => jb.certify(&self.basis, xe).verdict == Verdict::Invalid,
-            _ => {
-                let dim = self.basis.simplex().dim();
-                (0..self.points.n_points()).any(|q| {
-                    let j = mapping::det(dim, &mapping::jacobian(dim, xe, self.points.grads_at(q)));
-                    j.is_nan() || j <= 0.0
-                })
-            }
+        if certified {
+            return self.certified.certify(xe).verdict == Verdict::Invalid;
         }
+        let dim = self.basis.simplex().dim();
+        (0..self.points.n_points()).any(|q| {
+            let j = mapping::det(dim, &mapping::jacobian(dim, xe, self.points.grads_at(q)));
+            j.is_nan() || j <= 0.0
+        })
     }
 
-    /// The certified bounds of every cell ([`certify_cells`]); None above the
-    /// certified check's order limit.
-    pub fn certify_cells(&self, coords: &[f64], cells: &[usize]) -> Option<Vec<CertifiedJacobian>> {
-        self.certified.as_ref()?;
-        certify_cells(&self.basis, coords, cells)
+    /// The certified bounds of every cell ([`certify_cells`]).
+    pub fn certify_cells(&self, coords: &[f64], cells: &[usize]) -> Vec<CertifiedJacobian> {
+        self.certified.certify_cells(coords, cells)
     }
 
     /// Indices of the invalid cells of the mesh (`coords`, `cells`), in order.
@@ -360,7 +383,7 @@ mod tests {
                     y[..simplex.dim()].to_vec()
                 })
                 .collect();
-            let q = element_quality(&cache, &xe, None);
+            let q = element_quality(&cache, &xe, &xe, None);
             for v in [q.q1, q.q2, q.q3] {
                 assert!((v - 1.0).abs() < 1e-12, "{simplex:?}: {q:?}");
             }
@@ -368,10 +391,53 @@ mod tests {
     }
 
     #[test]
+    fn q1_q2_are_measured_against_the_straight_element_not_the_curved_vertices() {
+        // Straight element X = the reference tet; the curving moved its
+        // vertices (x = Aξ at the vertices) and bent an edge (a bump on one
+        // mid-edge node), so F = (∂x/∂ξ)(∂X/∂ξ)⁻¹ = ∂x/∂ξ. Against the straight
+        // tet through the curved vertices, F would be (∂x/∂ξ) A⁻¹ instead.
+        let nodes = NodeSet::new(Simplex::Tet, 2, NodeSpacing::Optimal);
+        let cache = sampling_cache(&LagrangeBasis::new(&nodes));
+        let a = [[1.0, 0.6, 0.0], [0.0, 0.5, 0.0], [0.2, 0.0, 1.3]];
+        let xs: Vec<f64> = nodes.coords.iter().flat_map(|x| *x).collect();
+        let mut xe: Vec<f64> =
+            nodes.coords.iter().flat_map(|x| a.map(|r| r[0] * x[0] + r[1] * x[1] + r[2] * x[2])).collect();
+        let mid = nodes.index_of(&[1, 1, 0, 0]).unwrap();
+        xe[3 * mid + 1] += 0.08;
+        let (mut i1, mut i2) = (Vec::new(), Vec::new());
+        for q in 0..cache.n_points() {
+            let f = mapping::jacobian(3, &xe, cache.grads_at(q));
+            let h = mapping::cofactor(3, &f);
+            i1.push(f.iter().flatten().map(|v| v * v).sum::<f64>());
+            i2.push(h.iter().flatten().map(|v| v * v).sum::<f64>());
+        }
+        let ratio = |v: &[f64]| {
+            let (lo, hi) = v.iter().fold((f64::INFINITY, 0.0f64), |(l, h), &x| (l.min(x), h.max(x)));
+            (lo / hi).sqrt()
+        };
+        let (q1, q2) = (ratio(&i1), ratio(&i2));
+        let against_straight = element_quality(&cache, &xe, &xs, None);
+        let against_curved_vertices = element_quality(&cache, &xe, &xe, None);
+        println!("Q1 {q1:.6}, Q2 {q2:.6}; against the curved vertices {against_curved_vertices:?}");
+        assert!(
+            (against_straight.q1 - q1).abs() < 1e-12 && (against_straight.q2 - q2).abs() < 1e-12,
+            "{against_straight:?}"
+        );
+        assert!((against_curved_vertices.q1 - q1).abs() > 1e-3, "the reference should matter here");
+        assert!((against_straight.q3 - against_curved_vertices.q3).abs() < 1e-12, "Q3 does not depend on X");
+        // An affine map of the straight element: constant F, so Q1 = Q2 = 1
+        // whichever the reference (the measures see variation of F, not F − I).
+        let affine: Vec<f64> =
+            nodes.coords.iter().flat_map(|x| a.map(|r| r[0] * x[0] + r[1] * x[1] + r[2] * x[2])).collect();
+        let q = element_quality(&cache, &affine, &xs, None);
+        assert!((q.q1 - 1.0).abs() < 1e-12 && (q.q2 - 1.0).abs() < 1e-12, "{q:?}");
+    }
+
+    #[test]
     fn curved_p2_triangle_scaled_jacobian_matches_analytic_bounds() {
         let delta = 0.1;
         let (cache, xe) = p2_triangle(delta);
-        let q = element_quality(&cache, &xe, None);
+        let q = element_quality(&cache, &xe, &xe, None);
         // J = 1 + 4δ(ξ+η) ranges over [1, 1 + 4δ], extremes at the vertex
         // (0,0) and on the edge ξ + η = 1, which the lattice samples.
         let expect = 1.0 / (1.0 + 4.0 * delta);
@@ -384,7 +450,7 @@ mod tests {
     fn folded_p2_triangle_is_invalid_and_counted() {
         let (cache, good) = p2_triangle(0.05);
         let (_, bad) = p2_triangle(-0.4);
-        let qs = vec![element_quality(&cache, &good, None), element_quality(&cache, &bad, None)];
+        let qs = vec![element_quality(&cache, &good, &good, None), element_quality(&cache, &bad, &bad, None)];
         assert!(qs[1].q3 < 0.0);
         let m = summarize(&qs);
         assert_eq!(m.n_invalid, 1);

@@ -390,10 +390,8 @@ fn cmd_quality(argv: &[String]) -> Result<()> {
     let cells: Vec<usize> = gmsh_cells.chunks_exact(npc).flat_map(|c| perm.iter().map(move |&k| c[k])).collect();
     let basis = LagrangeBasis::new(&nodes);
     let cache = quality::sampling_cache(&basis);
-    let mut q = quality::summarize(&quality::cell_qualities(&cache, &coords, &cells, None));
-    if let Some(certified) = quality::certify_cells(&basis, &coords, &cells) {
-        quality::add_certified(&mut q, &certified);
-    }
+    let mut q = quality::summarize(&quality::cell_qualities(&cache, &coords, None, &cells, None));
+    quality::add_certified(&mut q, &quality::certify_cells(&basis, &coords, &cells));
     let body = format!(
         "{{\n  \"file\": \"{}\",\n  \"order\": {order},\n  \"cells\": {},\n  \"nodes\": {},\n{}\n}}",
         json_escape(&input.display().to_string()),
