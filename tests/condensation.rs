@@ -2,6 +2,8 @@
 //! and formulation gives the same mesh with and without it, and the systems
 //! lose exactly the interior unknowns.
 
+mod common;
+
 use hocurve::cases::{self, Case};
 use hocurve::curve::{curve, CurveOptions, CurvedMesh, Formulation};
 use hocurve::material::MaterialModel;
@@ -86,27 +88,13 @@ fn orders_without_interior_nodes_are_left_whole() {
 /// interior ones are condensed out of the system.
 #[test]
 fn the_residual_norm_counts_the_condensed_unknowns() {
-    use hocurve::assembly::{assemble, AssemblyPlan, DofMap, LinearElasticKernel};
-    use hocurve::mapping::ElementCache;
-    use hocurve::material::LinearElastic;
-    use hocurve::mesh::{validate_and_orient, HighOrderMesh, Topology};
-    use hocurve::quadrature::simplex_rule;
-    use hocurve::reference::{LagrangeBasis, NodeSet, NodeSpacing};
     let case = cases::sphere_in_box_3d(2, 1);
-    let (lin, _) = validate_and_orient(&case.mesh).unwrap();
-    let topo = Topology::new(&lin).unwrap();
-    let nodes = NodeSet::new(topo.simplex, 4, NodeSpacing::Optimal);
-    let mesh = HighOrderMesh::elevate(&lin, &topo, &nodes, NodeSpacing::Optimal).unwrap();
-    let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(topo.simplex, 6));
-    let kernel = LinearElasticKernel { cache, material: LinearElastic::try_from_young_poisson(1.0, 0.45).unwrap() };
-    let prescribed: Vec<f64> = (0..mesh.coords.len()).map(|i| 0.01 * (i as f64 * 0.37).sin()).collect();
-    let norms: Vec<(f64, f64, usize)> = [DofMap::new(&mesh), DofMap::condensed(&mesh)]
-        .iter()
-        .map(|dofs| {
-            let pattern = dofs.pattern(&mesh);
-            let plan = AssemblyPlan::new(&mesh, dofs, &pattern);
-            let a = assemble(&mesh, &mesh.coords, dofs, &pattern, &plan, &kernel, &prescribed, true).unwrap();
-            (a.rhs_norm, a.rhs.iter().map(|v| v * v).sum::<f64>().sqrt(), pattern.n)
+    let norms: Vec<(f64, f64, usize)> = [false, true]
+        .into_iter()
+        .map(|condensed| {
+            let s = common::straight_system(&case, 4, condensed, true);
+            let a = &s.system;
+            (a.rhs_norm, a.rhs.iter().map(|v| v * v).sum::<f64>().sqrt(), s.pattern.n)
         })
         .collect();
     let ((full, full_rhs, nf), (cond, cond_rhs, nc)) = (norms[0], norms[1]);

@@ -2,32 +2,20 @@
 //! ordering is a permutation that keeps each node's dofs together, and AMD and
 //! nested dissection solve the same systems alike.
 
-use hocurve::assembly::{assemble, AssemblyPlan, DofMap, LinearElasticKernel};
+mod common;
+
+use hocurve::assembly::DofMap;
 use hocurve::cases::{self, Case};
-use hocurve::mapping::ElementCache;
-use hocurve::material::LinearElastic;
 use hocurve::mesh::{validate_and_orient, HighOrderMesh, Topology};
-use hocurve::quadrature::simplex_rule;
-use hocurve::reference::{LagrangeBasis, NodeSet, NodeSpacing};
+use hocurve::reference::{NodeSet, NodeSpacing};
 use hocurve::solver::{
     nested_dissection, node_block_size, DirectOrdering, DirectSolver, LinearSolver, SparseCholesky, SymmetricCsc,
 };
 
 /// K_ff and a right-hand side of the straight order-p mesh of `case`.
 fn system(case: &Case, p: usize) -> (SymmetricCsc, Vec<f64>, Vec<f64>) {
-    let (lin, _) = validate_and_orient(&case.mesh).unwrap();
-    let topo = Topology::new(&lin).unwrap();
-    let nodes = NodeSet::new(topo.simplex, p, NodeSpacing::Optimal);
-    let mesh = HighOrderMesh::elevate(&lin, &topo, &nodes, NodeSpacing::Optimal).unwrap();
-    let dofs = DofMap::new(&mesh);
-    let pattern = dofs.pattern(&mesh);
-    let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(topo.simplex, 2 * p));
-    let kernel = LinearElasticKernel { cache, material: LinearElastic::try_from_young_poisson(1.0, 0.45).unwrap() };
-    let prescribed: Vec<f64> = (0..mesh.coords.len()).map(|i| 0.01 * (i as f64 * 0.1).sin()).collect();
-    let plan = AssemblyPlan::new(&mesh, &dofs, &pattern);
-    let system = assemble(&mesh, &mesh.coords, &dofs, &pattern, &plan, &kernel, &prescribed, false).unwrap();
-    let (values, rhs) = (system.values, system.rhs);
-    (pattern, values, rhs)
+    let s = common::straight_system(case, p, false, false);
+    (s.pattern, s.system.values, s.system.rhs)
 }
 
 fn check_permutation(pattern: &SymmetricCsc, dim: usize) {

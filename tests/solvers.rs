@@ -2,14 +2,13 @@
 //! preconditioner gives the direct solver's meshes, its coarse operators are
 //! the Galerkin products, and it beats Jacobi-preconditioned CG.
 
-use hocurve::assembly::{assemble, multigrid_levels, AssemblyPlan, DofMap, LinearElasticKernel};
+mod common;
+
+use hocurve::assembly::{multigrid_levels, DofMap};
 use hocurve::cases::{self, Case};
 use hocurve::curve::{curve, CurveOptions, CurvedMesh, Formulation};
-use hocurve::mapping::ElementCache;
-use hocurve::material::{LinearElastic, MaterialModel};
-use hocurve::mesh::{validate_and_orient, HighOrderMesh, Topology};
-use hocurve::quadrature::simplex_rule;
-use hocurve::reference::{LagrangeBasis, NodeSet, NodeSpacing};
+use hocurve::material::MaterialModel;
+use hocurve::mesh::HighOrderMesh;
 use hocurve::solver::pcg::{try_pcg, BlockJacobi, PcgParams, SymmetricOperator};
 use hocurve::solver::pmg::galerkin_product;
 use hocurve::solver::{IterativeParams, IterativeSolver, LinearSolver, SolverChoice, SymmetricCsc};
@@ -92,28 +91,8 @@ fn auto_and_iterative_choices_parse() {
 
 /// K_ff of the straight order-p sphere cavity mesh.
 fn system(p: usize) -> (HighOrderMesh, DofMap, SymmetricCsc, Vec<f64>, Vec<f64>) {
-    let case = cases::sphere_in_box_3d(2, 3);
-    let (lin, _) = validate_and_orient(&case.mesh).unwrap();
-    let topo = Topology::new(&lin).unwrap();
-    let nodes = NodeSet::new(topo.simplex, p, NodeSpacing::Optimal);
-    let mesh = HighOrderMesh::elevate(&lin, &topo, &nodes, NodeSpacing::Optimal).unwrap();
-    let dofs = DofMap::new(&mesh);
-    let pattern = dofs.pattern(&mesh);
-    let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(topo.simplex, 2 * p));
-    let kernel = LinearElasticKernel { cache, material: LinearElastic::try_from_young_poisson(1.0, 0.45).unwrap() };
-    let prescribed: Vec<f64> = (0..mesh.coords.len()).map(|i| 0.01 * (i as f64 * 0.1).sin()).collect();
-    let system = assemble(
-        &mesh,
-        &mesh.coords,
-        &dofs,
-        &pattern,
-        &AssemblyPlan::new(&mesh, &dofs, &pattern),
-        &kernel,
-        &prescribed,
-        false,
-    )
-    .unwrap();
-    (mesh, dofs, pattern, system.values, system.rhs)
+    let s = common::straight_system(&cases::sphere_in_box_3d(2, 3), p, false, false);
+    (s.mesh, s.dofs, s.pattern, s.system.values, s.system.rhs)
 }
 
 #[test]

@@ -1,7 +1,40 @@
-//! Small structured meshes made in the tests themselves.
+//! Small structured meshes made in the tests themselves, and the assembled
+//! system of a straight high-order mesh.
 #![allow(dead_code)]
 
-use hocurve::mesh::LinearMesh;
+use hocurve::assembly::{assemble, Assembled, AssemblyPlan, DofMap, LinearElasticKernel};
+use hocurve::cases::Case;
+use hocurve::mapping::ElementCache;
+use hocurve::material::LinearElastic;
+use hocurve::mesh::{validate_and_orient, HighOrderMesh, LinearMesh, Topology};
+use hocurve::quadrature::simplex_rule;
+use hocurve::reference::{LagrangeBasis, NodeSet, NodeSpacing};
+use hocurve::solver::SymmetricCsc;
+
+/// The order-p mesh of `case` (straight), its dofs (cell interiors condensed
+/// or not), pattern, and the ILE system (ν = 0.45, rule of degree 2p) for a
+/// smooth prescribed field; with `residual`, assembled as for IIL/Newton.
+pub struct StraightSystem {
+    pub mesh: HighOrderMesh,
+    pub dofs: DofMap,
+    pub pattern: SymmetricCsc,
+    pub system: Assembled,
+}
+
+pub fn straight_system(case: &Case, p: usize, condensed: bool, residual: bool) -> StraightSystem {
+    let (lin, _) = validate_and_orient(&case.mesh).unwrap();
+    let topo = Topology::new(&lin).unwrap();
+    let nodes = NodeSet::new(topo.simplex, p, NodeSpacing::Optimal);
+    let mesh = HighOrderMesh::elevate(&lin, &topo, &nodes, NodeSpacing::Optimal).unwrap();
+    let dofs = if condensed { DofMap::condensed(&mesh) } else { DofMap::new(&mesh) };
+    let pattern = dofs.pattern(&mesh);
+    let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(topo.simplex, 2 * p));
+    let kernel = LinearElasticKernel { cache, material: LinearElastic::try_from_young_poisson(1.0, 0.45).unwrap() };
+    let prescribed: Vec<f64> = (0..mesh.coords.len()).map(|i| 0.01 * (i as f64 * 0.1).sin()).collect();
+    let plan = AssemblyPlan::new(&mesh, &dofs, &pattern);
+    let system = assemble(&mesh, &mesh.coords, &dofs, &pattern, &plan, &kernel, &prescribed, residual).unwrap();
+    StraightSystem { mesh, dofs, pattern, system }
+}
 
 /// Unit square split into 2n² triangles, interior vertices jittered
 /// deterministically so the mesh is not trivially structured.
