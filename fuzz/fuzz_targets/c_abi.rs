@@ -529,9 +529,13 @@ fn one_call(r: &mut Bytes, slots: &mut [Slot; 2], bases: &[Base], runs: &mut usi
                 }
             }
             13 => {
-                name = "set_threads+caps";
+                // The setters that keep the nodes first: only the last call's
+                // failure is checked against the nodes from before the three.
+                name = "set_threads+condensation+caps";
                 let st = hoc_mesh_set_threads(h, r.int(&[0, 1, 2, -1, c_int::MIN]));
                 check("set_threads", st, h);
+                let st = hoc_mesh_set_static_condensation(h, r.int(&[1, 0, 2, -1]));
+                check("set_static_condensation", st, h);
                 hoc_mesh_set_remove_caps(h, r.int(&[0, 1, 2, -1]))
             }
             14 | 15 => {

@@ -72,10 +72,8 @@ fn quality_path(msh: &hocurve::io::gmsh::MshContent) {
             let cache = quality::sampling_cache(&basis);
             (basis, cache)
         });
-        let mut q = quality::summarize(&quality::cell_qualities(cache, &coords, &cells, None));
-        if let Some(certified) = quality::certify_cells(basis, &coords, &cells) {
-            quality::add_certified(&mut q, &certified);
-        }
+        let mut q = quality::summarize(&quality::cell_qualities(cache, &coords, None, &cells, None));
+        quality::add_certified(&mut q, &quality::certify_cells(basis, &coords, &cells));
     });
 }
 

@@ -25,7 +25,7 @@ use crate::mesh::HighOrderMesh;
 use crate::reference::NodeSet;
 
 /// Local dofs (node · dim + component) of one cell, interior and boundary.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct LocalSplit {
     /// Dofs of the cell-interior nodes.
     pub interior: Vec<usize>,

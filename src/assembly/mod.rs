@@ -443,8 +443,8 @@ pub fn assemble_into<K: ElementKernel>(
     // free dof: the uncondensed b on the system rows, and ‖b_I‖² per cell.
     let measure = residual && split.is_some();
     let mut interior = match (split, out.interior.take()) {
-        (Some(_), Some(r)) => Some(r),
-        (Some(split), None) => Some(InteriorRecovery { split: split.clone(), keep: Vec::new() }),
+        (Some(split), Some(r)) if r.split == *split => Some(r),
+        (Some(split), _) => Some(InteriorRecovery { split: split.clone(), keep: Vec::new() }),
         (None, _) => None,
     };
     let mut none = Vec::new();
