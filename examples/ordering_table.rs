@@ -7,6 +7,8 @@
 //! `cargo run --release --example ordering_table -- <dim> <size> <p> [reps] [amd,nd]`
 //! (2D: `cylinder_channel_2d(size, 8, 100)`; 3D: `sphere_in_box_3d(size, size)`).
 
+mod common;
+
 use std::time::Instant;
 
 use hocurve::assembly::{assemble, AssemblyPlan, DofMap, LinearElasticKernel};
@@ -17,15 +19,6 @@ use hocurve::mesh::{validate_and_orient, HighOrderMesh, Topology};
 use hocurve::quadrature::simplex_rule;
 use hocurve::reference::{LagrangeBasis, NodeSet, NodeSpacing};
 use hocurve::solver::{DirectOrdering, SparseCholesky};
-
-fn peak_rss_mb() -> f64 {
-    let s = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    s.lines()
-        .find(|l| l.starts_with("VmHWM:"))
-        .and_then(|l| l.split_whitespace().nth(1))
-        .and_then(|v| v.parse::<f64>().ok())
-        .map_or(f64::NAN, |kb| kb / 1024.0)
-}
 
 fn stats(v: &mut [f64]) -> (f64, f64) {
     v.sort_by(f64::total_cmp);
@@ -54,7 +47,7 @@ fn main() -> hocurve::Result<()> {
     let plan = AssemblyPlan::new(&mesh, &dofs, &pattern);
     let system = assemble(&mesh, &mesh.coords, &dofs, &pattern, &plan, &kernel, &prescribed, false)?;
     let (values, rhs) = (system.values, system.rhs);
-    let base_mb = peak_rss_mb();
+    let base_mb = common::peak_rss_mb();
     let k = orderings.len();
     let (mut sym_t, mut num_t, mut nnz) = (vec![vec![]; k], vec![vec![]; k], vec![0usize; k]);
     let mut sol: Vec<Vec<f64>> = vec![vec![]; k];
@@ -83,7 +76,7 @@ fn main() -> hocurve::Result<()> {
             pattern.nnz(),
             orderings[i].name(),
             nnz[i],
-            peak_rss_mb()
+            common::peak_rss_mb()
         );
     }
     Ok(())

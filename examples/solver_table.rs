@@ -4,18 +4,11 @@
 //!
 //! `cargo run --release --example solver_table -- <n> <n_radial> <p> <auto|direct|iterative> [increments]`
 
+mod common;
+
 use hocurve::cases;
 use hocurve::curve::{curve, CurveOptions};
 use hocurve::solver::SolverChoice;
-
-fn peak_rss_mb() -> f64 {
-    let s = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    s.lines()
-        .find(|l| l.starts_with("VmHWM:"))
-        .and_then(|l| l.split_whitespace().nth(1))
-        .and_then(|v| v.parse::<f64>().ok())
-        .map_or(f64::NAN, |kb| kb / 1024.0)
-}
 
 fn main() -> hocurve::Result<()> {
     let a: Vec<String> = std::env::args().collect();
@@ -43,7 +36,7 @@ fn main() -> hocurve::Result<()> {
         t.total,
         r.solver_iterations,
         r.quality.min_q3,
-        peak_rss_mb()
+        common::peak_rss_mb()
     );
     Ok(())
 }
