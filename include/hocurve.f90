@@ -65,6 +65,7 @@ module hocurve
   integer(c_int), parameter, public :: HOC_STAGE_PROJECT = 1
   integer(c_int), parameter, public :: HOC_STAGE_INCREMENT = 2
   integer(c_int), parameter, public :: HOC_STAGE_QUALITY = 3
+  integer(c_int), parameter, public :: HOC_STAGE_OPTIMIZE = 4
 
   !> HocQuality: minima of Q1..Q5 over the cells, mean Q3, invalid and total cell counts,
   !> certified lower bound of Q3, certified-invalid and undecided cell counts.

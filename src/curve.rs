@@ -15,6 +15,7 @@ use crate::geometry::Projector;
 use crate::mapping::ElementCache;
 use crate::material::{make_material, LinearElastic, MaterialModel};
 use crate::mesh::{remove_boundary_caps, validate_and_orient, HighOrderMesh, LinearMesh, NodeConstraint, Topology};
+use crate::optimize::{self, OptimizeOptions, OptimizeReport};
 use crate::quadrature::simplex_rule;
 use crate::quality::{self, ElementQuality, MeshQuality};
 use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
@@ -112,6 +113,13 @@ pub struct CurveOptions {
     /// and 1.25× for ten); 2D direct 1.37× at p = 4 and 1.52× at p = 6;
     /// 7–38 % less memory.
     pub condense: bool,
+    /// The optimisation stage after the elastic solve ([`crate::optimize`]):
+    /// on by default, it untangles the cells the elastic curving leaves
+    /// invalid and improves those below a Q3 threshold. With it on, an
+    /// elastic solve that adaptive stepping cannot keep valid is finished
+    /// instead of refused (see [`CurveReport::elastic_stop`]), and the
+    /// optimisation then has to make it valid.
+    pub optimize: OptimizeOptions,
 }
 
 impl CurveOptions {
@@ -143,6 +151,7 @@ impl Default for CurveOptions {
             adaptive: None,
             max_splits: DEFAULT_MAX_SPLITS,
             condense: true,
+            optimize: OptimizeOptions::default(),
         }
     }
 }
@@ -154,6 +163,7 @@ pub enum Stage {
     Project,
     Increment,
     Quality,
+    Optimize,
 }
 
 /// Progress of a run: `step` of `total` within `stage`.
@@ -177,6 +187,8 @@ pub struct Timings {
     pub quality: f64,
     /// The validity check of adaptive load stepping after each increment.
     pub check: f64,
+    /// The optimisation stage.
+    pub optimize: f64,
 }
 
 /// What a run reports.
@@ -221,6 +233,25 @@ pub struct CurveReport {
     pub linear_solver: &'static str,
     /// Krylov iterations of each linear solve (zeros for a direct solver).
     pub solver_iterations: Vec<usize>,
+    /// Where the elastic stage stopped short of the full load, if it did:
+    /// adaptive stepping could not keep a cell valid, so the remaining load
+    /// was applied in one linear solve on the straight mesh and the
+    /// optimisation stage took over.
+    pub elastic_stop: Option<ElasticStop>,
+    /// What the optimisation stage did.
+    pub optimization: OptimizeReport,
+}
+
+/// The point where adaptive load stepping gave up.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ElasticStop {
+    /// Load fraction reached (the start of the increment that failed).
+    pub load: f64,
+    pub reason: StepBackReason,
+    /// The cell that could not be kept valid, when known.
+    pub cell: Option<usize>,
+    /// What went wrong, in words.
+    pub detail: String,
 }
 
 impl CurveReport {
@@ -346,6 +377,7 @@ pub fn curve(
         adaptive: opts.adaptive_enabled(),
         max_splits: opts.max_splits,
         condense: opts.condense,
+        finish: opts.optimize.enabled,
     };
     let mode = match opts.formulation {
         Formulation::Cil | Formulation::Nonlinear => TangentMode::Consistent,
@@ -353,35 +385,71 @@ pub fn curve(
     };
     let linear_iso = matches!(opts.formulation, Formulation::Linear | Formulation::Ile)
         && !opts.material.is_transversely_isotropic();
+    // Every isotropic model is calibrated so that c(F = I) = c_lin: the fast
+    // kernel, with a rule of degree 2p − 2, exact on straight-sided cells
+    // (∇N_a·∇N_b has degree 2p − 2 there): the symmetric rule has 24
+    // points at p = 4 in 3D, against 46 for degree 2p and 64 for a
+    // collapsed rule of degree 2p − 2. Curved cells are integrated
+    // approximately by any rule.
+    let linear_kernel = LinearElasticKernel {
+        cache: ElementCache::new(&basis, &simplex_rule(topo.simplex, (2 * opts.order).saturating_sub(2).max(1))),
+        material,
+    };
+    let finish_stepping = Stepping { increments: 1, adaptive: false, finish: false, ..stepping.clone() };
     let solved = if linear_iso {
-        // Every isotropic model is calibrated so that c(F = I) = c_lin: the fast
-        // kernel, with a rule of degree 2p − 2, exact on straight-sided cells
-        // (∇N_a·∇N_b has degree 2p − 2 there): the symmetric rule has 24
-        // points at p = 4 in 3D, against 46 for degree 2p and 64 for a
-        // collapsed rule of degree 2p − 2. Curved cells are integrated
-        // approximately by any rule.
-        let rule = simplex_rule(topo.simplex, (2 * opts.order).saturating_sub(2).max(1));
-        let kernel = LinearElasticKernel { cache: ElementCache::new(&basis, &rule), material };
-        solve_increments(&mut mesh, &kernel, &ubar, stepping, &mut timings, &mut tick)?
+        solve_increments(&mut mesh, &linear_kernel, &ubar, stepping, &mut timings, &mut tick)?
     } else {
         let kernel = MaterialKernel::new(&mesh, &straight, &cache, model.as_ref(), mode, &fibres);
         solve_increments(&mut mesh, &kernel, &ubar, stepping, &mut timings, &mut tick)?
     };
+    if let Some(stop) = &solved.stopped {
+        // The remaining load in one linear elastic solve on the straight
+        // mesh, which is always valid: the boundary reaches its target and
+        // the optimisation stage untangles what this leaves inverted.
+        let rest: Vec<f64> = ubar.iter().map(|u| u * (1.0 - stop.load)).collect();
+        let mut reference = HighOrderMesh { coords: straight.clone(), ..mesh.clone() };
+        solve_increments(&mut reference, &linear_kernel, &rest, finish_stepping, &mut timings, &mut tick)?;
+        for ((x, r), s) in mesh.coords.iter_mut().zip(&reference.coords).zip(&straight) {
+            *x += r - s;
+        }
+    }
     if let Some(i) = mesh.coords.iter().position(|x| !x.is_finite()) {
         return Err(Error::Solver(format!("the solution is not finite at node {}", i / dim)));
     }
 
-    // 5. Quality.
+    // 5. Quality, and the optimisation of the cells that need it.
     let t = Instant::now();
     tick(Stage::Quality, 0, 1)?;
     let ti = opts.material.is_transversely_isotropic().then_some(&fibres[..]);
     // Q1, Q2 against the straight mesh's elements (the curving may move vertices).
     let cache = quality::sampling_cache(&basis);
-    let cell_quality = quality::cell_qualities(&cache, &mesh.coords, Some(&straight), &mesh.cells, ti);
-    let mut q = quality::summarize(&cell_quality);
-    let certified = solved.certified.unwrap_or_else(|| quality::certify_cells(&basis, &mesh.coords, &mesh.cells));
-    quality::add_certified(&mut q, &certified);
+    let mut cell_quality = quality::cell_qualities(&cache, &mesh.coords, Some(&straight), &mesh.cells, ti);
+    let mut certified = match solved.certified {
+        Some(c) if solved.stopped.is_none() => c,
+        _ => quality::certify_cells(&basis, &mesh.coords, &mesh.cells),
+    };
     timings.quality = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    tick(Stage::Optimize, 0, 1)?;
+    let optimization =
+        optimize::optimize(&mut mesh, &straight, &basis, &cache, &opts.optimize, &mut cell_quality, &mut certified);
+    if optimization.ran && ti.is_some() {
+        // Q4, Q5 of the moved cells need their fibres.
+        cell_quality = quality::cell_qualities(&cache, &mesh.coords, Some(&straight), &mesh.cells, ti);
+    }
+    timings.optimize = t.elapsed().as_secs_f64();
+    let mut q = quality::summarize(&cell_quality);
+    quality::add_certified(&mut q, &certified);
+    if let Some(stop) = &solved.stopped {
+        if q.n_certified_invalid > 0 {
+            let c = certified.iter().position(|c| c.verdict == quality::Verdict::Invalid).unwrap_or(0);
+            return Err(Error::InvalidElement(format!(
+                "cell {c} is inverted (certified: det J <= 0 somewhere in it) after optimisation, with {} cells \
+                 invalid in all; the elastic stage had stopped at load {:.4}: {}",
+                q.n_certified_invalid, stop.load, stop.detail
+            )));
+        }
+    }
     timings.total = t0.elapsed().as_secs_f64();
     let report = CurveReport {
         order: opts.order,
@@ -408,6 +476,8 @@ pub fn curve(
         newton_history: solved.newton_history,
         linear_solver: solved.linear_solver,
         solver_iterations: solved.solver_iterations,
+        elastic_stop: solved.stopped,
+        optimization,
     };
     Ok(CurvedMesh { mesh, straight, cell_quality, report })
 }
@@ -433,6 +503,9 @@ pub struct Stepping {
     pub max_splits: usize,
     /// Condense the cell-interior nodes out of the linear systems.
     pub condense: bool,
+    /// At the limit of adaptive stepping, stop at the last accepted geometry
+    /// and report where ([`IncrementsReport::stopped`]) instead of failing.
+    pub finish: bool,
 }
 
 impl Stepping {
@@ -448,6 +521,7 @@ impl Stepping {
             adaptive: true,
             max_splits: DEFAULT_MAX_SPLITS,
             condense: false,
+            finish: false,
         }
     }
 }
@@ -513,6 +587,9 @@ pub struct IncrementsReport {
     /// Certified bounds of every cell on the geometry the run ended with,
     /// when its last check was the certified one.
     pub certified: Option<Vec<quality::CertifiedJacobian>>,
+    /// With [`Stepping::finish`]: where adaptive stepping gave up; the mesh
+    /// is left at the last accepted geometry.
+    pub stopped: Option<ElasticStop>,
 }
 
 impl IncrementsReport {
@@ -722,6 +799,12 @@ fn step_through<K: ElementKernel>(
                 }
             }
             Err(Failure::Fatal(e)) => return Err(e),
+            Err(Failure::AtStart(detail)) if stepping.finish && certify_all => {
+                out.stopped =
+                    Some(ElasticStop { load: from, reason: StepBackReason::SampledInvalid, cell: None, detail });
+                out.certified = None;
+                return Ok(());
+            }
             Err(Failure::AtStart(detail)) if !stepping.adaptive || certify_all => {
                 return Err(Error::InvalidElement(format!(
                     "{detail} in increment {} of {increments}; try more increments or another Poisson ratio",
@@ -739,6 +822,11 @@ fn step_through<K: ElementKernel>(
             }
             Err(Failure::Retry { reason, cell, detail }) => {
                 mesh.coords.copy_from_slice(&saved);
+                if depth >= splits && stepping.finish && reason != StepBackReason::NewtonFailed {
+                    out.stopped = Some(ElasticStop { load: from, reason, cell, detail });
+                    out.certified = None;
+                    return Ok(());
+                }
                 if depth >= splits {
                     let mut place = format!("in increment {} of {increments}", k + 1);
                     if stepping.adaptive {

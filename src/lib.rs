@@ -3,7 +3,7 @@
 //!
 //! The chain, each module knowing only the ones before it:
 //! `reference` → `quadrature` → `mapping` → `mesh` → `geometry` → `material`
-//! → `quality` → `assembly` → `solver` → `curve` → `session`; `io`, `ffi`
+//! → `quality` → `assembly` → `solver` → `optimize` → `curve` → `session`; `io`, `ffi`
 //! and the CLI sit at the edges, `cases` builds demo and test meshes.
 
 pub mod error;
@@ -14,6 +14,7 @@ pub mod geometry;
 pub mod mapping;
 pub mod material;
 pub mod mesh;
+pub mod optimize;
 pub mod quadrature;
 pub mod quality;
 pub mod reference;

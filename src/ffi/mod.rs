@@ -148,7 +148,7 @@ pub type HocProjectFn = Option<
     ) -> c_int,
 >;
 
-/// Progress of a run: `stage` 0 elevate, 1 project, 2 increment, 3 quality;
+/// Progress of a run: `stage` 0 elevate, 1 project, 2 increment, 3 quality, 4 optimise;
 /// `step` of `total`. Return 0 to continue, nonzero to cancel the run.
 pub type HocProgressFn =
     Option<unsafe extern "C" fn(user_data: *mut c_void, stage: c_int, step: c_int, total: c_int) -> c_int>;
@@ -510,6 +510,7 @@ pub unsafe extern "C" fn hoc_mesh_set_progress(
                     Stage::Project => 1,
                     Stage::Increment => 2,
                     Stage::Quality => 3,
+                    Stage::Optimize => 4,
                 };
                 let ud = &ud;
                 // SAFETY: host-provided callback with its own user data.

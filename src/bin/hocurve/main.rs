@@ -47,7 +47,7 @@ USAGE:
                 [--young E] [--poisson NU] [--increments N]
                 [--spacing optimal|equispaced] [--solver auto|direct|iterative]
                 [--caps remove|keep] [--adaptive on|off] [--max-splits K]
-                [--condense on|off]
+                [--condense on|off] [--optimize on|off]
       Curve a linear gmsh (.msh 4.1) mesh. TAG is the elementary entity tag of
       the boundary facets (or 3D feature curves) that lie on SHAPE:
         sphere:cx,cy,cz,r        circle:cx,cy,r (2D)     circle3:cx,cy,cz,nx,ny,nz,r
@@ -64,6 +64,12 @@ USAGE:
       The cell-interior nodes (p >= 4 in 3D, p >= 3 in 2D) are eliminated
       cell by cell before each solve unless --condense off (same mesh; the
       report's system_dofs counts the unknowns actually solved for).
+      Then the optimisation stage (unless --optimize off) moves the nodes
+      around every cell left invalid or with Q3 below 0.2 to untangle and
+      improve it; with it on, an increment that adaptive stepping cannot
+      keep valid does not stop the run: the rest of the load is applied in
+      one solve and the optimisation has to make the mesh valid. The report
+      says where the elastic stage stopped and what the optimisation did.
 
   hocurve quality MESH.msh [--report R.json]
       Measure Q1, Q2, Q3 of any high-order gmsh mesh.
@@ -178,6 +184,7 @@ fn options_from(args: &Args, default_order: usize) -> Result<CurveOptions> {
     o.increments = args.number("increments", o.increments)?;
     o.adaptive = args.on_off("adaptive")?;
     o.condense = args.on_off("condense")?.unwrap_or(o.condense);
+    o.optimize.enabled = args.on_off("optimize")?.unwrap_or(o.optimize.enabled);
     o.max_splits = args.number("max-splits", o.max_splits)?;
     o.remove_caps = match args.get("caps") {
         None | Some("remove") => true,
@@ -204,6 +211,7 @@ fn progress_printer(label: String) -> impl FnMut(&Progress) -> bool {
             Stage::Project => "projecting boundary nodes".to_string(),
             Stage::Increment => format!("increment {}/{}", p.step + 1, p.total),
             Stage::Quality => "measuring quality".to_string(),
+            Stage::Optimize => "optimising".to_string(),
         };
         eprintln!("[{label}] {msg}");
         true
@@ -315,6 +323,7 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
             "adaptive",
             "max-splits",
             "condense",
+            "optimize",
             "output",
             "report",
         ],
@@ -472,8 +481,8 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
          \"increments_taken\": {},\n  \"load_fractions\": {:?},\n  \"step_backs\": [{}],\n  \"spacing\": \"{}\",\n  \"nodes\": {},\n  \"dofs\": {},\n  \"system_dofs\": {},\n  \
          \"cells\": {},\n  \"removed_caps\": {},\n  \"projected_nodes\": {},\n  \"max_projection_distance\": {},\n{},\n  \
          \"newton_history\": {:?},\n  \"linear_solver\": \"{}\",\n  \"solver_iterations\": {:?},\n  \
-         \"seconds\": {{\"total\": {}, \"elevate\": {}, \"project\": {}, \"assembly\": {}, \"setup\": {}, \"solve\": {}, \"quality\": {}, \"check\": {}}},\n  \
-         \"output\": {}\n}}",
+         \"seconds\": {{\"total\": {}, \"elevate\": {}, \"project\": {}, \"assembly\": {}, \"setup\": {}, \"solve\": {}, \"quality\": {}, \"check\": {}, \"optimize\": {}}},\n  \
+         \"elastic_stop\": {},\n  \"optimization\": {},\n  \"output\": {}\n}}",
         r.order,
         r.formulation.name(),
         r.material.name(),
@@ -515,7 +524,35 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
         num(t.solve),
         num(t.quality),
         num(t.check),
+        num(t.optimize),
+        r.elastic_stop.as_ref().map_or("null".into(), |s| format!(
+            "{{\"load\": {}, \"reason\": \"{}\", \"cell\": {}, \"detail\": \"{}\"}}",
+            num(s.load),
+            s.reason.name(),
+            s.cell.map_or("null".into(), |c| c.to_string()),
+            json_escape(&s.detail)
+        )),
+        optimization_json(&r.optimization),
         output.map(|p| format!("\"{}\"", json_escape(&p.display().to_string()))).unwrap_or("null".into())
+    )
+}
+
+fn optimization_json(o: &hocurve::optimize::OptimizeReport) -> String {
+    format!(
+        "{{\"ran\": {}, \"target_cells\": {}, \"cells_touched\": {}, \"nodes_moved\": {}, \"patches\": {}, \
+         \"rounds\": {}, \"invalid_before\": {}, \"invalid_after\": {}, \"min_q3_before\": {}, \
+         \"min_q3_after\": {}, \"seconds\": {}}}",
+        o.ran,
+        o.target_cells,
+        o.cells_touched,
+        o.nodes_moved,
+        o.patches,
+        o.rounds,
+        o.invalid_before,
+        o.invalid_after,
+        num(o.min_q3_before),
+        num(o.min_q3_after),
+        num(o.seconds)
     )
 }
 
