@@ -208,6 +208,17 @@ static inline void curve_and_check_with(const char *name, const FixtureMesh *m, 
         q.certified_min_q3, q.min_q3);
   CHECK(q.n_certified_invalid + q.n_uncertain >= q.n_invalid, "p=%d: %zu certified invalid, %zu uncertain < %zu sampled",
         p, q.n_certified_invalid, q.n_uncertain, q.n_invalid);
+  /* The optimisation stage reports what it did and agrees with the quality. */
+  HocOptimization o;
+  CHECK_OK(mesh, hoc_mesh_optimization(mesh, &o));
+  CHECK(o.invalid_after <= o.invalid_before, "p=%d: optimisation %zu -> %zu invalid cells", p, o.invalid_before,
+        o.invalid_after);
+  CHECK(fabs(o.min_q3_after - q.min_q3) < 1e-12, "p=%d: optimisation reports min Q3 %g, quality %g", p,
+        o.min_q3_after, q.min_q3);
+  CHECK(o.ran ? (o.invalid_before > 0 || o.min_q3_after >= o.min_q3_before) : o.cells_touched == 0,
+        "p=%d: optimisation min Q3 %g -> %g", p, o.min_q3_before, o.min_q3_after);
+  CHECK(o.elastic_load > 0 && o.elastic_load <= 1 && (o.elastic_stopped || o.elastic_load == 1),
+        "p=%d: elastic stage reached load %g (stopped %d)", p, o.elastic_load, o.elastic_stopped);
   if (!rs.allow_invalid) {
     CHECK(q.n_invalid == 0, "p=%d: %zu invalid cells (min Q3 %g)", p, q.n_invalid, q.min_q3);
     CHECK(q.n_certified_invalid == 0 && q.n_uncertain == 0, "p=%d: certified: %zu invalid, %zu uncertain", p,

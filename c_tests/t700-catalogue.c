@@ -374,6 +374,10 @@ int main(void) {
             "remove must be 0 or 1");
   ON_HANDLE("set_static_condensation: -1", mesh, 3, hoc_mesh_set_static_condensation(mesh, -1),
             HOC_ERROR_INVALID_ARGUMENT, "enabled must be 0 or 1");
+  ON_HANDLE("set_optimize: 2", mesh, 3, hoc_mesh_set_optimize(mesh, 2), HOC_ERROR_INVALID_ARGUMENT,
+            "enabled must be 0 or 1");
+  ON_HANDLE("optimization: NULL out", mesh, 3, hoc_mesh_optimization(mesh, NULL), HOC_ERROR_NULL_POINTER,
+            "out is NULL");
   {
     const double fib[3 * 7] = {0};
     ON_HANDLE("set_fibres: 2^40 cells (small buffer)", mesh, 3, hoc_mesh_set_fibres(mesh, big, fib),

@@ -77,6 +77,15 @@ module hocurve
     integer(c_size_t) :: n_certified_invalid, n_uncertain
   end type hoc_quality
 
+  !> HocOptimization: what the optimisation stage of the last run did (see hocurve.h).
+  type, bind(C), public :: hoc_optimization
+    integer(c_int) :: ran, elastic_stopped
+    real(c_double) :: elastic_load
+    integer(c_size_t) :: target_cells, cells_touched, nodes_moved, patches
+    integer(c_size_t) :: invalid_before, invalid_after
+    real(c_double) :: min_q3_before, min_q3_after, seconds
+  end type hoc_optimization
+
   abstract interface
     !> HocProjectFn: project n_points points (n_points*dim coordinates) onto
     !> entity (entity_dim, entity_tag); return 0 on success.
@@ -269,6 +278,21 @@ module hocurve
       integer(c_int) :: status
     end function hoc_mesh_set_static_condensation
 
+    !> enabled: 1 on (default), 0 off
+    function hoc_mesh_set_optimize(mesh, enabled) bind(C, name="hoc_mesh_set_optimize") result(status)
+      import :: c_int, c_ptr
+      type(c_ptr), value :: mesh
+      integer(c_int), value :: enabled
+      integer(c_int) :: status
+    end function hoc_mesh_set_optimize
+
+    function hoc_mesh_optimization(mesh, out) bind(C, name="hoc_mesh_optimization") result(status)
+      import :: c_int, c_ptr, hoc_optimization
+      type(c_ptr), value :: mesh
+      type(hoc_optimization), intent(out) :: out
+      integer(c_int) :: status
+    end function hoc_mesh_optimization
+
     function hoc_mesh_increment_count(mesh, n_taken, n_step_backs) &
         bind(C, name="hoc_mesh_increment_count") result(status)
       import :: c_int, c_ptr, c_size_t
@@ -390,6 +414,7 @@ module hocurve
             hoc_mesh_set_threads, hoc_mesh_set_remove_caps, hoc_mesh_get_input_cells, hoc_mesh_set_order, &
             hoc_mesh_set_material, hoc_mesh_set_formulation, hoc_mesh_set_newton, hoc_mesh_set_fibres, &
             hoc_mesh_set_adaptive_stepping, hoc_mesh_set_static_condensation, hoc_mesh_run_increments, &
+            hoc_mesh_set_optimize, hoc_mesh_optimization, &
             hoc_mesh_increment_count, &
             hoc_mesh_get_load_fractions, hoc_mesh_get_step_backs, &
             hoc_mesh_quality, hoc_mesh_cell_quality, hoc_mesh_node_count, hoc_mesh_cell_count, &

@@ -36,7 +36,7 @@ typedef int HocStatus;
 typedef int (*HocProjectFn)(void *user_data, int entity_dim, int entity_tag, size_t n_points, const double *points, double *projected);
 
 /**
- * Progress of a run: `stage` 0 elevate, 1 project, 2 increment, 3 quality;
+ * Progress of a run: `stage` 0 elevate, 1 project, 2 increment, 3 quality, 4 optimise;
  * `step` of `total`. Return 0 to continue, nonzero to cancel the run.
  */
 typedef int (*HocProgressFn)(void *user_data, int stage, int step, int total);
@@ -76,6 +76,50 @@ typedef int (*HocProgressFn)(void *user_data, int stage, int step, int total);
  * (throw, longjmp) through the library.
  */
 typedef int (*HocLinearSolverFn)(void *user_data, int64_t n, const int64_t *row_ptr, const int64_t *col_idx, const double *values, const double *rhs, double *x);
+
+/**
+ * What the optimisation stage of the last run did (hoc_mesh_optimization).
+ */
+typedef struct {
+  /**
+   * 1 if it ran (some cell was invalid or had Q3 below 0.2), else 0.
+   */
+  int ran;
+  /**
+   * 1 if the elastic stage stopped short of the full load, because
+   * adaptive stepping could not keep a cell valid: the rest of the load
+   * was applied in one solve and the optimisation made the mesh valid.
+   */
+  int elastic_stopped;
+  /**
+   * The load fraction the elastic stage reached (1 if it did not stop).
+   */
+  double elastic_load;
+  /**
+   * Cells selected: invalid, or with Q3 below the threshold.
+   */
+  size_t target_cells;
+  /**
+   * Cells of the patches whose new node positions were kept.
+   */
+  size_t cells_touched;
+  size_t nodes_moved;
+  size_t patches;
+  /**
+   * Certified-invalid (or undecided) cells before and after the stage.
+   */
+  size_t invalid_before;
+  size_t invalid_after;
+  /**
+   * Minimum Q3 before and after the stage.
+   */
+  double min_q3_before;
+  double min_q3_after;
+  /**
+   * Wall-clock seconds of the stage.
+   */
+  double seconds;
+} HocOptimization;
 
 /**
  * Placement of the high-order nodes in the reference element.
@@ -419,6 +463,32 @@ HocStatus hoc_mesh_set_remove_caps(HocMesh *mesh, int remove);
  * @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
  */
 HocStatus hoc_mesh_set_static_condensation(HocMesh *mesh, int enabled);
+
+/**
+ * The optimisation stage after the elastic solve (default 1): the nodes
+ * around every cell that the elastic curving leaves invalid, or with Q3
+ * below 0.2, are moved to untangle and improve it (boundary nodes stay on
+ * their entity). With it on, an increment that adaptive stepping cannot
+ * keep valid does not fail the run: the rest of the load is applied in one
+ * solve and the optimisation must make the mesh valid, or the run fails
+ * with HOC_ERROR_INVALID_ELEMENT and the mesh is left as it was. With it
+ * off, such a run fails as soon as adaptive stepping gives up.
+ *
+ * @param[in,out] mesh the handle
+ * @param[in] enabled 1 on, 0 off
+ * @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
+ */
+HocStatus hoc_mesh_set_optimize(HocMesh *mesh, int enabled);
+
+/**
+ * What the optimisation stage of the last successful run did; all zero
+ * (elastic_load 1, qualities NaN) before any run.
+ *
+ * @param[in] mesh the handle
+ * @param[out] out the figures
+ * @return HOC_OK or HOC_ERROR_NULL_POINTER
+ */
+HocStatus hoc_mesh_optimization(const HocMesh *mesh, HocOptimization *out);
 
 /**
  * Polynomial order (1..10) and node spacing. Discards a curved result.

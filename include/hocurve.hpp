@@ -232,6 +232,8 @@ class Mesh {
   }
   /** Static condensation of the cell-interior nodes: 1 on (default), 0 off. */
   void set_static_condensation(int enabled) { check(hoc_mesh_set_static_condensation(mesh_, enabled), mesh_); }
+  /** The optimisation stage after the elastic solve: true on (default), false off. */
+  void set_optimize(bool enabled) { check(hoc_mesh_set_optimize(mesh_, enabled ? 1 : 0), mesh_); }
   /** Newton–Raphson settings of HOC_FORMULATION_NONLINEAR: tolerance > 0, max_iterations ≥ 1. */
   void set_newton(double tolerance, int max_iterations) {
     check(hoc_mesh_set_newton(mesh_, tolerance, max_iterations), mesh_);
@@ -259,6 +261,12 @@ class Mesh {
     HocQuality q{};
     check(hoc_mesh_quality(mesh_, &q), mesh_);
     return q;
+  }
+  /** What the optimisation stage of the last run did. */
+  HocOptimization optimization() const {
+    HocOptimization o{};
+    check(hoc_mesh_optimization(mesh_, &o), mesh_);
+    return o;
   }
   /** Per-cell quality, measure 1..3. */
   std::vector<double> cell_quality(int measure) const {

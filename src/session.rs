@@ -166,6 +166,12 @@ impl Session {
         self.opts.condense = condense;
     }
 
+    /// The optimisation stage after the elastic solve (default on; see
+    /// [`crate::optimize`]). Keeps a curved result; applies to the next run.
+    pub fn set_optimize(&mut self, enabled: bool) {
+        self.opts.optimize.enabled = enabled;
+    }
+
     /// Material model and constants (E > 0, 0 ≤ ν < 0.5). Whether the model
     /// suits the formulation is checked at the next run, so the two may be
     /// set in any order.

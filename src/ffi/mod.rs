@@ -133,6 +133,34 @@ pub struct HocQuality {
     pub n_uncertain: usize,
 }
 
+/// What the optimisation stage of the last run did (hoc_mesh_optimization).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default)]
+pub struct HocOptimization {
+    /// 1 if it ran (some cell was invalid or had Q3 below 0.2), else 0.
+    pub ran: c_int,
+    /// 1 if the elastic stage stopped short of the full load, because
+    /// adaptive stepping could not keep a cell valid: the rest of the load
+    /// was applied in one solve and the optimisation made the mesh valid.
+    pub elastic_stopped: c_int,
+    /// The load fraction the elastic stage reached (1 if it did not stop).
+    pub elastic_load: f64,
+    /// Cells selected: invalid, or with Q3 below the threshold.
+    pub target_cells: usize,
+    /// Cells of the patches whose new node positions were kept.
+    pub cells_touched: usize,
+    pub nodes_moved: usize,
+    pub patches: usize,
+    /// Certified-invalid (or undecided) cells before and after the stage.
+    pub invalid_before: usize,
+    pub invalid_after: usize,
+    /// Minimum Q3 before and after the stage.
+    pub min_q3_before: f64,
+    pub min_q3_after: f64,
+    /// Wall-clock seconds of the stage.
+    pub seconds: f64,
+}
+
 /// Projects `n_points` points (`dim` interleaved coordinates each, `dim` the
 /// mesh dimension) onto the geometric entity (`entity_dim`, `entity_tag`),
 /// writing the closest points into `projected`. Returns 0 on success. It is
@@ -648,6 +676,72 @@ pub unsafe extern "C" fn hoc_mesh_set_static_condensation(mesh: *mut HocMesh, en
             e => return Err(arg(format!("enabled must be 0 or 1, got {e}"))),
         };
         h.session.set_condense(enabled);
+        Ok(())
+    })
+}
+
+/// The optimisation stage after the elastic solve (default 1): the nodes
+/// around every cell that the elastic curving leaves invalid, or with Q3
+/// below 0.2, are moved to untangle and improve it (boundary nodes stay on
+/// their entity). With it on, an increment that adaptive stepping cannot
+/// keep valid does not fail the run: the rest of the load is applied in one
+/// solve and the optimisation must make the mesh valid, or the run fails
+/// with HOC_ERROR_INVALID_ELEMENT and the mesh is left as it was. With it
+/// off, such a run fails as soon as adaptive stepping gives up.
+///
+/// @param[in,out] mesh the handle
+/// @param[in] enabled 1 on, 0 off
+/// @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_set_optimize(mesh: *mut HocMesh, enabled: c_int) -> HocStatus {
+    guard(mesh, || {
+        let h = handle_mut(mesh)?;
+        let enabled = match enabled {
+            0 => false,
+            1 => true,
+            e => return Err(arg(format!("enabled must be 0 or 1, got {e}"))),
+        };
+        h.session.set_optimize(enabled);
+        Ok(())
+    })
+}
+
+/// What the optimisation stage of the last successful run did; all zero
+/// (elastic_load 1, qualities NaN) before any run.
+///
+/// @param[in] mesh the handle
+/// @param[out] out the figures
+/// @return HOC_OK or HOC_ERROR_NULL_POINTER
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_optimization(mesh: *const HocMesh, out: *mut HocOptimization) -> HocStatus {
+    guard(mesh, || {
+        let h = handle(mesh)?;
+        let out = out.as_mut().ok_or_else(|| null("out"))?;
+        *out = match h.session.report() {
+            Some(r) => {
+                let o = &r.optimization;
+                HocOptimization {
+                    ran: o.ran as c_int,
+                    elastic_stopped: r.elastic_stop.is_some() as c_int,
+                    elastic_load: r.elastic_stop.as_ref().map_or(1.0, |s| s.load),
+                    target_cells: o.target_cells,
+                    cells_touched: o.cells_touched,
+                    nodes_moved: o.nodes_moved,
+                    patches: o.patches,
+                    invalid_before: o.invalid_before,
+                    invalid_after: o.invalid_after,
+                    min_q3_before: o.min_q3_before,
+                    min_q3_after: o.min_q3_after,
+                    seconds: o.seconds,
+                }
+            }
+            None => HocOptimization {
+                elastic_load: 1.0,
+                min_q3_before: f64::NAN,
+                min_q3_after: f64::NAN,
+                ..Default::default()
+            },
+        };
         Ok(())
     })
 }

@@ -92,7 +92,7 @@ const UNTANGLE_PASSES: usize = 8;
 /// An untangling pass that raises the worst J by less than this times δ
 /// has stalled.
 const STALLED: f64 = 1e-3;
-const MAX_ITERATIONS: usize = 300;
+const MAX_ITERATIONS: usize = 100;
 
 /// Everything per order that the patches share.
 struct Stage<'a> {
@@ -284,7 +284,7 @@ impl<'a> Stage<'a> {
                 }
                 Some(total)
             };
-            lbfgs::minimise(x, &mut f, first_step, MAX_ITERATIONS, 1e-9);
+            lbfgs::minimise(x, &mut f, first_step, MAX_ITERATIONS, 1e-6);
         };
         let mut jmin = min_det(&x, &mut xe);
         for _ in 0..UNTANGLE_PASSES {
