@@ -29,7 +29,7 @@ pub fn distortion(dim: usize, f: &Mat3, delta: f64) -> Option<(f64, Mat3)> {
     let j = mapping::det(dim, f);
     let s = (j * j + 4.0 * delta * delta).sqrt();
     let sigma = 0.5 * (j + s);
-    if !(sigma > 0.0) || !sigma.is_finite() {
+    if sigma.is_nan() || sigma <= 0.0 || !sigma.is_finite() {
         return None;
     }
     let d = dim as f64;
@@ -95,7 +95,7 @@ impl SampleRule {
             })
             .collect();
         let (w_inv, det) = mapping::inverse(dim, &mapping::affine_jacobian(dim, &xv));
-        if !(det.abs() > 0.0) || !det.is_finite() {
+        if det == 0.0 || !det.is_finite() {
             return None;
         }
         let mut grads = vec![0.0; self.ref_grads.len()];

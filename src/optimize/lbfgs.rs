@@ -13,6 +13,10 @@ const ARMIJO: f64 = 1e-4;
 /// Halvings of a trial step before the search gives up.
 const MAX_BACKTRACKS: usize = 40;
 
+/// An energy: the value at x with its gradient written into the second
+/// argument, or None where the energy is infinite.
+pub type Energy<'a> = dyn FnMut(&[f64], &mut [f64]) -> Option<f64> + 'a;
+
 /// How a minimisation ended.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Minimised {
@@ -27,13 +31,7 @@ pub struct Minimised {
 /// moves most by `first_step`. Stops after `max_iterations`, or when an
 /// iteration lowers the energy by less than `rel_tol` times its value, or
 /// when no step along the search direction lowers it.
-pub fn minimise(
-    x: &mut [f64],
-    f: &mut dyn FnMut(&[f64], &mut [f64]) -> Option<f64>,
-    first_step: f64,
-    max_iterations: usize,
-    rel_tol: f64,
-) -> Minimised {
+pub fn minimise(x: &mut [f64], f: &mut Energy, first_step: f64, max_iterations: usize, rel_tol: f64) -> Minimised {
     let n = x.len();
     let mut g = vec![0.0; n];
     let Some(mut value) = f(x, &mut g) else {
@@ -43,7 +41,7 @@ pub fn minimise(
     let mut d = vec![0.0; n];
     let mut trial = vec![0.0; n];
     let mut g_new = vec![0.0; n];
-    let mut alpha_buf = vec![0.0; MEMORY];
+    let mut alpha_buf = [0.0; MEMORY];
     let mut small = 0;
     for it in 0..max_iterations {
         // Two-loop recursion: d = −H g.
@@ -59,7 +57,7 @@ pub fn minimise(
             d.iter_mut().for_each(|v| *v *= gamma);
         } else {
             let dmax = d.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-            if !(dmax > 0.0) {
+            if dmax.is_nan() || dmax <= 0.0 {
                 return Minimised { iterations: it, value };
             }
             let scale = first_step / dmax;
@@ -70,13 +68,13 @@ pub fn minimise(
             axpy(alpha_buf[k] - b, &s_hist[k], &mut d);
         }
         let mut slope = dot(&g, &d);
-        if !(slope < 0.0) {
+        if slope.is_nan() || slope >= 0.0 {
             // Not a descent direction: restart from steepest descent.
             s_hist.clear();
             y_hist.clear();
             rho.clear();
             let gmax = g.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-            if !(gmax > 0.0) {
+            if gmax.is_nan() || gmax <= 0.0 {
                 return Minimised { iterations: it, value };
             }
             d.iter_mut().zip(&g).for_each(|(d, g)| *d = -g * first_step / gmax);

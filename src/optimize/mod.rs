@@ -335,7 +335,7 @@ fn sample_rule(basis: &LagrangeBasis, lattice: usize) -> SampleRule {
     let lattice = NodeSet::new(simplex, lattice, NodeSpacing::Equispaced);
     let wsum: f64 = rule.weights.iter().sum();
     let mut weights: Vec<f64> = rule.weights.iter().map(|w| 0.5 * w / wsum).collect();
-    weights.extend(std::iter::repeat(0.5 / lattice.len() as f64).take(lattice.len()));
+    weights.extend(std::iter::repeat_n(0.5 / lattice.len() as f64, lattice.len()));
     let mut points = rule.points.clone();
     points.extend(lattice.coords.iter().copied());
     let tab = basis.tabulate(&points);
@@ -356,4 +356,58 @@ fn element_size(dim: usize, xs: &[f64]) -> f64 {
         })
         .collect();
     crate::mapping::det(dim, &crate::mapping::affine_jacobian(dim, &v)).abs().powf(1.0 / dim as f64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::reference::Simplex;
+
+    /// The nodes of the reference element of `basis`, mapped to a skewed
+    /// straight element and then bent by a smooth field scaled by `bend`.
+    fn element(basis: &LagrangeBasis, bend: f64) -> (Vec<f64>, Vec<f64>) {
+        let dim = basis.simplex().dim();
+        let a = [[1.0, 0.3, -0.2], [0.1, 0.9, 0.25], [0.2, -0.1, 1.1]];
+        let (mut xs, mut xe) = (Vec::new(), Vec::new());
+        for p in &basis.nodes().coords {
+            let y: Vec<f64> = (0..dim).map(|i| (0..dim).map(|j| a[i][j] * p[j]).sum()).collect();
+            xs.extend(&y);
+            for (i, yi) in y.iter().enumerate() {
+                xe.push(yi + bend * (3.0 * y[(i + 1) % dim] * y[(i + 2) % dim] + y[i] * y[i]).sin());
+            }
+        }
+        (xs, xe)
+    }
+
+    #[test]
+    fn element_energy_gradient_matches_finite_differences() {
+        for (simplex, p, delta) in [(Simplex::Tri, 3, 0.0), (Simplex::Tet, 2, 0.0), (Simplex::Tet, 3, 0.2)] {
+            let basis = LagrangeBasis::new(&NodeSet::new(simplex, p, NodeSpacing::Optimal));
+            let rule = sample_rule(&basis, p);
+            let (xs, xe) = element(&basis, 0.05);
+            let e = rule.element(&xs).unwrap();
+            let mut g = vec![0.0; xe.len()];
+            rule.energy_grad(&e, &xe, delta, &mut g).unwrap();
+            let h = 1e-6;
+            for k in 0..xe.len() {
+                let (mut xp, mut xm) = (xe.clone(), xe.clone());
+                xp[k] += h;
+                xm[k] -= h;
+                let fd = (rule.energy(&e, &xp, delta).unwrap() - rule.energy(&e, &xm, delta).unwrap()) / (2.0 * h);
+                assert!((fd - g[k]).abs() < 1e-6 * (1.0 + fd.abs()), "{simplex:?} p={p} dof {k}: {fd} vs {}", g[k]);
+            }
+        }
+    }
+
+    #[test]
+    fn a_straight_element_has_energy_one_and_zero_gradient() {
+        let basis = LagrangeBasis::new(&NodeSet::new(Simplex::Tet, 4, NodeSpacing::Optimal));
+        let rule = sample_rule(&basis, 8);
+        let (xs, _) = element(&basis, 0.0);
+        let e = rule.element(&xs).unwrap();
+        let mut g = vec![0.0; xs.len()];
+        let v = rule.energy_grad(&e, &xs, 0.0, &mut g).unwrap();
+        assert!((v - 1.0).abs() < 1e-12, "{v}");
+        assert!(g.iter().all(|x| x.abs() < 1e-10), "{g:?}");
+    }
 }

@@ -1,0 +1,107 @@
+//! The optimisation stage on a mesh nobody here designed: gmsh 4.15's
+//! default tet mesh of a spherical cavity (r = 0.8) in the box [-2, 2]³ with
+//! only about four elements across the sphere's radius
+//! (`tests/data/sphere_cavity_coarse_gmsh.msh`, surface tag 7; made with
+//! `Mesh.CharacteristicLengthMax` 0.7, `CharacteristicLengthMin` 0.35).
+
+use std::path::Path;
+
+use hocurve::geometry::{Shape, ShapeProjector};
+use hocurve::mesh::{LinearMesh, NodeConstraint};
+use hocurve::{curve, CurveOptions, CurvedMesh, Error, Formulation};
+
+const RADIUS: f64 = 0.8;
+
+fn coarse_sphere() -> (LinearMesh, ShapeProjector) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/sphere_cavity_coarse_gmsh.msh");
+    let msh = hocurve::io::gmsh::read_msh(&path).unwrap();
+    let mut mesh = hocurve::io::gmsh::to_linear_mesh(&msh).unwrap();
+    let mut projector = ShapeProjector::new();
+    projector.insert(7, Shape::Sphere { center: [0.0; 3], radius: RADIUS });
+    mesh.retain_tags(|d, t| projector.get(d, t).is_some());
+    (mesh, projector)
+}
+
+fn run(mesh: &LinearMesh, projector: &ShapeProjector, opts: &CurveOptions) -> hocurve::Result<CurvedMesh> {
+    curve(mesh, projector, opts, &mut |_| true)
+}
+
+fn p3(optimize: bool) -> CurveOptions {
+    let mut o = CurveOptions { order: 3, ..Default::default() };
+    o.optimize.enabled = optimize;
+    o
+}
+
+/// Every node on the sphere is on it, and no node on a straight wall (or any
+/// vertex there) has moved.
+fn assert_boundary_kept(c: &CurvedMesh) {
+    let m = &c.mesh;
+    for n in 0..m.n_nodes() {
+        let x = m.node(n);
+        match m.constraint[n] {
+            NodeConstraint::OnEntity { .. } => {
+                let r = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
+                assert!((r - RADIUS).abs() < 1e-12, "node {n} is {:.3e} off the sphere", r - RADIUS);
+            }
+            NodeConstraint::Fixed => {
+                assert_eq!(&m.coords[3 * n..3 * n + 3], &c.straight[3 * n..3 * n + 3], "fixed node {n} moved")
+            }
+            NodeConstraint::Free => {}
+        }
+    }
+}
+
+#[test]
+fn optimisation_makes_valid_a_mesh_that_adaptive_stepping_cannot_keep_valid() {
+    let (mesh, projector) = coarse_sphere();
+    // Without the optimisation stage, ILE with adaptive stepping gives up.
+    match run(&mesh, &projector, &p3(false)) {
+        Err(Error::InvalidElement(m)) => assert!(m.contains("adaptive stepping"), "{m}"),
+        other => panic!("expected the elastic stage to fail, got {:?}", other.map(|c| c.report.quality)),
+    }
+    let c = run(&mesh, &projector, &p3(true)).unwrap();
+    let r = &c.report;
+    let stop = r.elastic_stop.as_ref().expect("the elastic stage stopped short of the full load");
+    assert!(stop.load > 0.0 && stop.load < 1.0, "{stop:?}");
+    assert!(r.optimization.ran && r.optimization.invalid_before > 0, "{:?}", r.optimization);
+    assert_eq!(r.optimization.invalid_after, 0);
+    assert_eq!(r.quality.n_certified_invalid, 0);
+    assert_eq!(r.quality.n_uncertain, 0);
+    assert!(r.quality.certified_min_q3 > 0.0 && r.quality.min_q3 > 0.05, "{:?}", r.quality);
+    assert_boundary_kept(&c);
+}
+
+#[test]
+fn optimisation_raises_the_minimum_quality_of_a_valid_mesh_and_keeps_the_boundary() {
+    let (mesh, projector) = coarse_sphere();
+    // The one-shot linear formulation leaves a valid mesh with a poor cell.
+    let base = CurveOptions { order: 4, formulation: Formulation::Linear, ..Default::default() };
+    let mut without = base.clone();
+    without.optimize.enabled = false;
+    let off = run(&mesh, &projector, &without).unwrap();
+    let on = run(&mesh, &projector, &base).unwrap();
+    assert_eq!(off.report.quality.n_certified_invalid, 0);
+    let (q_off, q_on) = (off.report.quality.min_q3, on.report.quality.min_q3);
+    assert!(q_off < hocurve::optimize::DEFAULT_THRESHOLD, "the case no longer needs the stage: {q_off}");
+    assert!(q_on > q_off + 0.05, "min Q3 {q_off} -> {q_on}");
+    assert_eq!(on.report.optimization.min_q3_before, q_off);
+    assert_eq!(on.report.quality.n_certified_invalid, 0);
+    assert!(on.report.optimization.cells_touched > 0);
+    // Nodes outside the patches did not move.
+    let moved = (0..on.mesh.n_nodes()).filter(|&n| on.mesh.node(n) != off.mesh.node(n)).count();
+    assert_eq!(moved, on.report.optimization.nodes_moved);
+    assert_boundary_kept(&on);
+}
+
+#[test]
+fn optimisation_gives_the_same_mesh_for_any_number_of_threads() {
+    let (mesh, projector) = coarse_sphere();
+    let opts = p3(true);
+    let in_pool = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| run(&mesh, &projector, &opts).unwrap())
+    };
+    let (one, two) = (in_pool(1), in_pool(2));
+    assert!(one.report.optimization.ran);
+    assert!(one.mesh.coords == two.mesh.coords, "the curved meshes differ between 1 and 2 threads");
+}
