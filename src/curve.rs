@@ -431,8 +431,16 @@ pub fn curve(
     timings.quality = t.elapsed().as_secs_f64();
     let t = Instant::now();
     tick(Stage::Optimize, 0, 1)?;
-    let optimization =
-        optimize::optimize(&mut mesh, &straight, &basis, &cache, &opts.optimize, &mut cell_quality, &mut certified);
+    let optimization = optimize::optimize(
+        &mut mesh,
+        &straight,
+        &basis,
+        &cache,
+        &opts.optimize,
+        Some(projector),
+        &mut cell_quality,
+        &mut certified,
+    );
     if optimization.ran && ti.is_some() {
         // Q4, Q5 of the moved cells need their fibres.
         cell_quality = quality::cell_qualities(&cache, &mesh.coords, Some(&straight), &mesh.cells, ti);

@@ -13,11 +13,16 @@ use hocurve::{curve, CurveOptions, CurvedMesh, Error, Formulation};
 const RADIUS: f64 = 0.8;
 
 fn coarse_sphere() -> (LinearMesh, ShapeProjector) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/sphere_cavity_coarse_gmsh.msh");
+    gmsh_sphere_cavity("sphere_cavity_coarse_gmsh.msh", RADIUS)
+}
+
+/// A gmsh mesh of a sphere cavity (surface tag 7) from tests/data.
+fn gmsh_sphere_cavity(file: &str, radius: f64) -> (LinearMesh, ShapeProjector) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(file);
     let msh = hocurve::io::gmsh::read_msh(&path).unwrap();
     let mut mesh = hocurve::io::gmsh::to_linear_mesh(&msh).unwrap();
     let mut projector = ShapeProjector::new();
-    projector.insert(7, Shape::Sphere { center: [0.0; 3], radius: RADIUS });
+    projector.insert(7, Shape::Sphere { center: [0.0; 3], radius });
     mesh.retain_tags(|d, t| projector.get(d, t).is_some());
     (mesh, projector)
 }
@@ -35,13 +40,17 @@ fn p3(optimize: bool) -> CurveOptions {
 /// Every node on the sphere is on it, and no node on a straight wall (or any
 /// vertex there) has moved.
 fn assert_boundary_kept(c: &CurvedMesh) {
+    assert_on_sphere(c, RADIUS);
+}
+
+fn assert_on_sphere(c: &CurvedMesh, radius: f64) {
     let m = &c.mesh;
     for n in 0..m.n_nodes() {
         let x = m.node(n);
         match m.constraint[n] {
             NodeConstraint::OnEntity { .. } => {
                 let r = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
-                assert!((r - RADIUS).abs() < 1e-12, "node {n} is {:.3e} off the sphere", r - RADIUS);
+                assert!((r - radius).abs() < 1e-12, "node {n} is {:.3e} off the sphere", r - radius);
             }
             NodeConstraint::Fixed => {
                 assert_eq!(&m.coords[3 * n..3 * n + 3], &c.straight[3 * n..3 * n + 3], "fixed node {n} moved")
@@ -104,4 +113,36 @@ fn optimisation_gives_the_same_mesh_for_any_number_of_threads() {
     let (one, two) = (in_pool(1), in_pool(2));
     assert!(one.report.optimization.ran);
     assert!(one.mesh.coords == two.mesh.coords, "the curved meshes differ between 1 and 2 threads");
+}
+
+/// A tet of gmsh's mesh of a sphere cavity (r = 0.6 in [-1, 1]^3, four
+/// elements across the radius) has two faces on the sphere whose normals
+/// differ by 54°: once curved, det J vanishes along their shared edge
+/// whatever the interior nodes do. Letting that edge's high-order node slide
+/// on the sphere makes the cell valid.
+#[test]
+fn sliding_boundary_nodes_on_the_surface_makes_valid_what_interior_moves_cannot() {
+    let (mesh, projector) = gmsh_sphere_cavity("sphere_cavity_cap_gmsh.msh", 0.6);
+    let mut opts = CurveOptions { order: 2, ..Default::default() };
+    opts.optimize.slide = false;
+    match run(&mesh, &projector, &opts) {
+        Err(Error::InvalidElement(m)) => assert!(m.contains("after optimisation"), "{m}"),
+        other => panic!("expected interior moves alone to fail, got {:?}", other.map(|c| c.report.quality)),
+    }
+    opts.optimize.slide = true;
+    let c = run(&mesh, &projector, &opts).unwrap();
+    assert_eq!(c.report.quality.n_certified_invalid, 0);
+    assert!(c.report.quality.certified_min_q3 > 0.0);
+    // The boundary nodes where the projection put them: no adaptive
+    // stepping, no optimisation (the mesh comes back with its invalid cell).
+    let mut plain = CurveOptions { order: 2, adaptive: Some(false), ..Default::default() };
+    plain.optimize.enabled = false;
+    let placed = run(&mesh, &projector, &plain).unwrap();
+    assert!(placed.report.quality.n_certified_invalid > 0);
+    let slid = (0..c.mesh.n_nodes())
+        .filter(|&n| matches!(c.mesh.constraint[n], NodeConstraint::OnEntity { .. }))
+        .filter(|&n| c.mesh.coords[3 * n..3 * n + 3] != placed.mesh.coords[3 * n..3 * n + 3])
+        .count();
+    assert!(slid > 0, "no boundary node slid");
+    assert_on_sphere(&c, 0.6);
 }

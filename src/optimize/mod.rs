@@ -21,12 +21,14 @@ pub mod energy;
 pub mod lbfgs;
 pub mod patch;
 
+use std::sync::Mutex;
 use std::time::Instant;
 
 use rayon::prelude::*;
 
+use crate::geometry::Projector;
 use crate::mapping::ElementCache;
-use crate::mesh::HighOrderMesh;
+use crate::mesh::{HighOrderMesh, NodeConstraint};
 use crate::quadrature::simplex_rule;
 use crate::quality::{self, CertifiedJacobian, ElementQuality, JacobianBernstein, Verdict};
 use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
@@ -41,6 +43,9 @@ pub struct OptimizeOptions {
     /// Cells whose sampled Q3 is below this are optimised too (default
     /// [`DEFAULT_THRESHOLD`]); invalid cells always are.
     pub threshold: f64,
+    /// Let the high-order boundary nodes of a patch slide on their entity
+    /// when moving the interior nodes leaves a cell invalid (default on).
+    pub slide: bool,
 }
 
 /// Default Q3 below which a valid cell is optimised.
@@ -48,7 +53,7 @@ pub const DEFAULT_THRESHOLD: f64 = 0.2;
 
 impl Default for OptimizeOptions {
     fn default() -> Self {
-        OptimizeOptions { enabled: true, threshold: DEFAULT_THRESHOLD }
+        OptimizeOptions { enabled: true, threshold: DEFAULT_THRESHOLD, slide: true }
     }
 }
 
@@ -122,13 +127,16 @@ impl CellState {
 /// the straight-sided positions of the same nodes, `sampling` is
 /// [`quality::sampling_cache`] of `basis`; `cell_quality` and `certified`
 /// are the figures of every cell on entry and are updated for the cells
-/// that changed.
+/// that changed. With a `projector`, the high-order boundary nodes of a
+/// patch that interior moves cannot make valid slide on their entity.
+#[allow(clippy::too_many_arguments)]
 pub fn optimize(
     mesh: &mut HighOrderMesh,
     straight: &[f64],
     basis: &LagrangeBasis,
     sampling: &ElementCache,
     opts: &OptimizeOptions,
+    projector: Option<&dyn Projector>,
     cell_quality: &mut [ElementQuality],
     certified: &mut [CertifiedJacobian],
 ) -> OptimizeReport {
@@ -146,6 +154,9 @@ pub fn optimize(
     if opts.enabled && report.target_cells > 0 {
         report.ran = true;
         let stage = Stage::new(basis, sampling);
+        // Projector calls are serialised: a host's callback is called from
+        // one thread at a time.
+        let projector = projector.filter(|_| opts.slide).map(Mutex::new);
         let adj = NodeCells::new(mesh);
         let mut touched = vec![false; nc];
         let mut moved = vec![false; mesh.n_nodes()];
@@ -158,7 +169,11 @@ pub fn optimize(
             let patches = build_patches(mesh, &adj, &seeds, layers);
             report.patches += patches.len();
             let rule = if round == 0 { &stage.coarse } else { &stage.fine };
-            let coords = &mesh.coords;
+            let (coords, constraint) = (&mesh.coords, &mesh.constraint);
+            let entity = |n: usize| match constraint[n] {
+                NodeConstraint::OnEntity { dim, tag } => Some((dim, tag)),
+                _ => None,
+            };
             let results: Vec<Option<Vec<f64>>> = patches
                 .par_iter()
                 .map(|p| {
@@ -171,15 +186,19 @@ pub fn optimize(
                         rule,
                         cell_quality,
                         certified,
+                        projector.as_ref(),
+                        &entity,
                     )
                 })
                 .collect();
             let dim = stage.dim;
             for (p, result) in patches.iter().zip(results) {
                 let Some(x) = result else { continue };
-                for (i, &n) in p.free.iter().enumerate() {
+                for (i, &n) in p.free.iter().chain(&p.sliding).enumerate() {
+                    if mesh.coords[n * dim..(n + 1) * dim] != x[i * dim..(i + 1) * dim] {
+                        moved[n] = true;
+                    }
                     mesh.coords[n * dim..(n + 1) * dim].copy_from_slice(&x[i * dim..(i + 1) * dim]);
-                    moved[n] = true;
                 }
                 for &c in &p.cells {
                     let s = stage.cell_state(&mesh.coords, mesh.cell(c), straight);
@@ -216,8 +235,14 @@ impl<'a> Stage<'a> {
         CellState { q: quality::element_quality(self.sampling, &xe, &xs, None), cert: self.bernstein.certify(&xe) }
     }
 
-    /// New positions of `patch.free` (dim each), or None if the optimisation
+    /// New positions of the patch's moving nodes (`patch.free`, then
+    /// `patch.sliding`, `dim` coordinates each), or None if the optimisation
     /// did not improve the patch.
+    ///
+    /// First the interior nodes alone; then, if cells are still invalid and
+    /// a projector is given, the interior and boundary nodes together, the
+    /// boundary ones moving in their entity's tangent space (a frame found
+    /// through the projector) and projected back onto it after each pass.
     #[allow(clippy::too_many_arguments)]
     fn optimize_patch(
         &self,
@@ -229,72 +254,246 @@ impl<'a> Stage<'a> {
         rule: &SampleRule,
         cell_quality: &[ElementQuality],
         certified: &[CertifiedJacobian],
+        projector: Option<&Mutex<&dyn Projector>>,
+        entity: &dyn Fn(usize) -> Option<(usize, i32)>,
     ) -> Option<Vec<f64>> {
-        if patch.free.is_empty() {
+        if patch.free.is_empty() && patch.sliding.is_empty() {
             return None;
         }
         let dim = self.dim;
         let cell = |c: usize| &cells[c * npc..(c + 1) * npc];
-        // Per cell: its samples on the straight element, and for each of its
-        // nodes the index among the free ones (or usize::MAX: fixed).
         let mut elements: Vec<ElementSamples> = Vec::with_capacity(patch.cells.len());
-        let mut local: Vec<usize> = Vec::with_capacity(patch.cells.len() * npc);
         let mut h = f64::INFINITY;
         for &c in &patch.cells {
             let xs = gather(straight, cell(c), dim);
             elements.push(rule.element(&xs)?);
             h = h.min(element_size(dim, &xs));
-            local.extend(cell(c).iter().map(|n| patch.free.binary_search(n).unwrap_or(usize::MAX)));
         }
-        let mut x: Vec<f64> = patch.free.iter().flat_map(|&n| coords[n * dim..(n + 1) * dim].iter().copied()).collect();
-        let gather_cell = |k: usize, x: &[f64], xe: &mut [f64]| {
-            for (a, &n) in cell(patch.cells[k]).iter().enumerate() {
-                let i = local[k * npc + a];
-                let src = if i == usize::MAX { &coords[n * dim..(n + 1) * dim] } else { &x[i * dim..(i + 1) * dim] };
-                xe[a * dim..(a + 1) * dim].copy_from_slice(src);
+        let moving: Vec<usize> = patch.free.iter().chain(&patch.sliding).copied().collect();
+        let local: Vec<usize> = patch
+            .cells
+            .iter()
+            .flat_map(|&c| cell(c).iter().map(|n| position_in(&patch.free, &patch.sliding, *n)))
+            .collect();
+        let node = |n: usize| point(&coords[n * dim..(n + 1) * dim]);
+        let mut pos: Vec<[f64; 3]> = moving.iter().map(|&n| node(n)).collect();
+        let patch_score = |pos: &[[f64; 3]]| {
+            let (mut invalid, mut q3) = (0, f64::INFINITY);
+            let mut xe = vec![0.0; npc * dim];
+            for (k, &c) in patch.cells.iter().enumerate() {
+                gather_moved(cell(c), &local[k * npc..(k + 1) * npc], coords, pos, dim, &mut xe);
+                let xs = gather(straight, cell(c), dim);
+                let s = CellState {
+                    q: quality::element_quality(self.sampling, &xe, &xs, None),
+                    cert: self.bernstein.certify(&xe),
+                };
+                invalid += s.invalid() as usize;
+                q3 = q3.min(s.q.q3);
             }
+            (invalid, q3)
+        };
+        let problem = PatchProblem {
+            dim,
+            npc,
+            rule,
+            elements: &elements,
+            local: &local,
+            coords,
+            cells: patch.cells.as_slice(),
+            all_cells: cells,
+        };
+        // Interior nodes alone (the sliding ones held where they are).
+        let interior: Vec<Unknown> = (0..moving.len())
+            .map(|j| if j < patch.free.len() { Unknown::free(pos[j], dim) } else { Unknown::fixed(pos[j]) })
+            .collect();
+        problem.minimise(&mut pos, interior, 0.05 * h);
+        let mut best = (patch_score(&pos), pos.clone());
+        if let (Some(projector), true) = (projector, best.0 .0 > 0 && !patch.sliding.is_empty()) {
+            for _ in 0..SLIDING_PASSES {
+                let mut unknowns: Vec<Unknown> = (0..patch.free.len()).map(|j| Unknown::free(pos[j], dim)).collect();
+                for (j, &n) in patch.sliding.iter().enumerate() {
+                    let at = pos[patch.free.len() + j];
+                    let frame =
+                        entity(n).and_then(|(edim, tag)| tangent_frame(projector, edim, tag, at, 1e-3 * h, dim));
+                    unknowns.push(match frame {
+                        Some(t) => Unknown { base: at, tangents: t, limit: SLIDE_LIMIT * h },
+                        None => Unknown::fixed(at),
+                    });
+                }
+                problem.minimise(&mut pos, unknowns, 0.05 * h);
+                // Back onto the entities.
+                for (j, &n) in patch.sliding.iter().enumerate() {
+                    let k = patch.free.len() + j;
+                    if let Some((edim, tag)) = entity(n) {
+                        let mut out = [[f64::NAN; 3]];
+                        let ok = projector
+                            .lock()
+                            .map(|p| p.project(edim, tag, &[pos[k]], &mut out).is_ok())
+                            .unwrap_or(false);
+                        if ok && out[0].iter().all(|v| v.is_finite()) {
+                            pos[k] = out[0];
+                            if dim == 2 {
+                                pos[k][2] = 0.0;
+                            }
+                        } else {
+                            pos[k] = node(n);
+                        }
+                    }
+                }
+                let score = patch_score(&pos);
+                if better(score, best.0) {
+                    best = (score, pos.clone());
+                }
+                if best.0 .0 == 0 {
+                    break;
+                }
+                pos.clone_from(&best.1);
+            }
+        }
+        let before = (
+            patch.cells.iter().filter(|&&c| certified[c].verdict != Verdict::Valid).count(),
+            patch.cells.iter().map(|&c| cell_quality[c].q3).fold(f64::INFINITY, f64::min),
+        );
+        better(best.0, before).then(|| best.1.iter().flat_map(|x| x[..dim].to_vec()).collect())
+    }
+}
+
+/// (invalid cells, min Q3): fewer invalid cells, or as many and a higher Q3.
+fn better(a: (usize, f64), b: (usize, f64)) -> bool {
+    a.0 < b.0 || (a.0 == b.0 && a.1 > b.1)
+}
+
+/// Passes of the sliding phase (optimise, project back, measure).
+const SLIDING_PASSES: usize = 3;
+
+/// A sliding node moves at most this times the patch's smallest element
+/// size from where a pass starts.
+const SLIDE_LIMIT: f64 = 0.3;
+
+/// One moving node: position base + Σ_m t_m tangents[m], with |Σ t_m
+/// tangents[m]| ≤ limit.
+#[derive(Debug, Clone)]
+struct Unknown {
+    base: [f64; 3],
+    tangents: Vec<[f64; 3]>,
+    limit: f64,
+}
+
+impl Unknown {
+    fn free(base: [f64; 3], dim: usize) -> Unknown {
+        let tangents = (0..dim)
+            .map(|d| {
+                let mut e = [0.0; 3];
+                e[d] = 1.0;
+                e
+            })
+            .collect();
+        Unknown { base, tangents, limit: f64::INFINITY }
+    }
+    fn fixed(base: [f64; 3]) -> Unknown {
+        Unknown { base, tangents: Vec::new(), limit: f64::INFINITY }
+    }
+}
+
+/// The energy of one patch as a function of its unknowns.
+struct PatchProblem<'a> {
+    dim: usize,
+    npc: usize,
+    rule: &'a SampleRule,
+    elements: &'a [ElementSamples],
+    /// Per cell-local node of the patch cells: index among the moving nodes, or usize::MAX.
+    local: &'a [usize],
+    coords: &'a [f64],
+    cells: &'a [usize],
+    all_cells: &'a [usize],
+}
+
+impl PatchProblem<'_> {
+    /// Minimise over `unknowns` (one per moving node) from `pos`, untangling
+    /// first if a sample point is inverted; writes the new positions.
+    fn minimise(&self, pos: &mut [[f64; 3]], unknowns: Vec<Unknown>, first_step: f64) {
+        let (dim, npc) = (self.dim, self.npc);
+        let offsets: Vec<usize> = unknowns
+            .iter()
+            .scan(0, |acc, u| {
+                let o = *acc;
+                *acc += u.tangents.len();
+                Some(o)
+            })
+            .collect();
+        let n_vars = unknowns.iter().map(|u| u.tangents.len()).sum::<usize>();
+        if n_vars == 0 {
+            return;
+        }
+        let place = |t: &[f64], out: &mut [[f64; 3]]| -> bool {
+            for (j, u) in unknowns.iter().enumerate() {
+                let mut x = u.base;
+                let mut moved2 = 0.0;
+                for (m, tm) in u.tangents.iter().enumerate() {
+                    let v = t[offsets[j] + m];
+                    for d in 0..3 {
+                        x[d] += v * tm[d];
+                    }
+                    moved2 += v * v;
+                }
+                if moved2.sqrt() > u.limit {
+                    return false;
+                }
+                out[j] = x;
+            }
+            true
         };
         let mut xe = vec![0.0; npc * dim];
         let mut ge = vec![0.0; npc * dim];
-        let min_det = |x: &[f64], xe: &mut [f64]| {
-            (0..patch.cells.len())
+        let mut trial = pos.to_vec();
+        let cell = |c: usize| &self.all_cells[c * npc..(c + 1) * npc];
+        let min_det = |p: &[[f64; 3]], xe: &mut [f64]| {
+            (0..self.cells.len())
                 .map(|k| {
-                    gather_cell(k, x, xe);
-                    rule.min_det(&elements[k], xe)
+                    gather_moved(cell(self.cells[k]), &self.local[k * npc..(k + 1) * npc], self.coords, p, dim, xe);
+                    self.rule.min_det(&self.elements[k], xe)
                 })
                 .fold(f64::INFINITY, f64::min)
         };
-        let first_step = 0.05 * h;
-        let run = |x: &mut Vec<f64>, delta: f64, xe: &mut Vec<f64>, ge: &mut Vec<f64>| {
-            let mut f = |x: &[f64], g: &mut [f64]| -> Option<f64> {
+        let mut xe_run = vec![0.0; npc * dim];
+        let mut run = |t: &mut Vec<f64>, delta: f64| {
+            let xe = &mut xe_run;
+            let mut f = |t: &[f64], g: &mut [f64]| -> Option<f64> {
+                if !place(t, &mut trial) {
+                    return None;
+                }
                 g.iter_mut().for_each(|v| *v = 0.0);
                 let mut total = 0.0;
-                for k in 0..patch.cells.len() {
-                    gather_cell(k, x, xe);
+                for k in 0..self.cells.len() {
+                    let loc = &self.local[k * npc..(k + 1) * npc];
+                    gather_moved(cell(self.cells[k]), loc, self.coords, &trial, dim, xe);
                     ge.iter_mut().for_each(|v| *v = 0.0);
-                    total += rule.energy_grad(&elements[k], xe, delta, ge)?;
-                    for a in 0..npc {
-                        let i = local[k * npc + a];
-                        if i != usize::MAX {
-                            for d in 0..dim {
-                                g[i * dim + d] += ge[a * dim + d];
-                            }
+                    total += self.rule.energy_grad(&self.elements[k], xe, delta, &mut ge)?;
+                    for (a, &j) in loc.iter().enumerate() {
+                        if j == usize::MAX {
+                            continue;
+                        }
+                        for (m, tm) in unknowns[j].tangents.iter().enumerate() {
+                            g[offsets[j] + m] += (0..dim).map(|d| tm[d] * ge[a * dim + d]).sum::<f64>();
                         }
                     }
                 }
                 Some(total)
             };
-            lbfgs::minimise(x, &mut f, first_step, MAX_ITERATIONS, 1e-6);
+            lbfgs::minimise(t, &mut f, first_step, MAX_ITERATIONS, 1e-6);
         };
-        let mut jmin = min_det(&x, &mut xe);
+        let mut t = vec![0.0; n_vars];
+        let mut jmin = min_det(pos, &mut xe);
         for _ in 0..UNTANGLE_PASSES {
             if jmin > UNTANGLED {
                 break;
             }
             let delta = (UNTANGLE_EPS * (UNTANGLE_EPS - jmin)).sqrt();
-            run(&mut x, delta, &mut xe, &mut ge);
+            run(&mut t, delta);
             let last = jmin;
-            jmin = min_det(&x, &mut xe);
+            let mut now = pos.to_vec();
+            place(&t, &mut now);
+            jmin = min_det(&now, &mut xe);
             if jmin < 0.0 && jmin - last <= STALLED * delta {
                 // The worst point does not move: it depends on fixed nodes
                 // only, or the patch is too small; a larger one may help.
@@ -302,28 +501,79 @@ impl<'a> Stage<'a> {
             }
         }
         if jmin > 0.0 {
-            run(&mut x, 0.0, &mut xe, &mut ge);
+            run(&mut t, 0.0);
         }
-        // Keep the new positions only if they improve the patch.
-        let score = |invalid: usize, q3: f64| (invalid, -q3);
-        let before = score(
-            patch.cells.iter().filter(|&&c| certified[c].verdict != Verdict::Valid).count(),
-            patch.cells.iter().map(|&c| cell_quality[c].q3).fold(f64::INFINITY, f64::min),
-        );
-        let (mut invalid, mut q3) = (0, f64::INFINITY);
-        for k in 0..patch.cells.len() {
-            gather_cell(k, &x, &mut xe);
-            let xs = gather(straight, cell(patch.cells[k]), dim);
-            let s = CellState {
-                q: quality::element_quality(self.sampling, &xe, &xs, None),
-                cert: self.bernstein.certify(&xe),
-            };
-            invalid += s.invalid() as usize;
-            q3 = q3.min(s.q.q3);
-        }
-        let after = score(invalid, q3);
-        (after.0 < before.0 || (after.0 == before.0 && after.1 < before.1)).then_some(x)
+        place(&t, pos);
     }
+}
+
+/// Index of node `n` among the moving nodes (`free`, then `sliding`), or usize::MAX.
+fn position_in(free: &[usize], sliding: &[usize], n: usize) -> usize {
+    match free.binary_search(&n) {
+        Ok(i) => i,
+        Err(_) => sliding.binary_search(&n).map_or(usize::MAX, |i| free.len() + i),
+    }
+}
+
+/// The node coordinates of one cell: moving nodes from `pos`, the others from `coords`.
+fn gather_moved(cell: &[usize], local: &[usize], coords: &[f64], pos: &[[f64; 3]], dim: usize, xe: &mut [f64]) {
+    for (a, (&n, &j)) in cell.iter().zip(local).enumerate() {
+        let src = if j == usize::MAX { &coords[n * dim..(n + 1) * dim] } else { &pos[j][..dim] };
+        xe[a * dim..(a + 1) * dim].copy_from_slice(src);
+    }
+}
+
+fn point(x: &[f64]) -> [f64; 3] {
+    let mut p = [0.0; 3];
+    p[..x.len()].copy_from_slice(x);
+    p
+}
+
+/// An orthonormal basis of the tangent space of entity (`edim`, `tag`) at
+/// `at` (a point on it): the projections of `at + eps e_k` less `at`,
+/// orthonormalised, keeping `edim` of them. None if the projector fails or
+/// the frame is degenerate.
+fn tangent_frame(
+    projector: &Mutex<&dyn Projector>,
+    edim: usize,
+    tag: i32,
+    at: [f64; 3],
+    eps: f64,
+    dim: usize,
+) -> Option<Vec<[f64; 3]>> {
+    let probes: Vec<[f64; 3]> = (0..dim)
+        .map(|k| {
+            let mut x = at;
+            x[k] += eps;
+            x
+        })
+        .collect();
+    let mut out = vec![[f64::NAN; 3]; probes.len()];
+    projector.lock().ok()?.project(edim, tag, &probes, &mut out).ok()?;
+    let mut vs: Vec<[f64; 3]> = out.iter().map(|y| [y[0] - at[0], y[1] - at[1], y[2] - at[2]]).collect();
+    // Gram–Schmidt, largest first.
+    let mut frame: Vec<[f64; 3]> = Vec::new();
+    for _ in 0..edim {
+        for v in vs.iter_mut() {
+            for f in &frame {
+                let d = v[0] * f[0] + v[1] * f[1] + v[2] * f[2];
+                for i in 0..3 {
+                    v[i] -= d * f[i];
+                }
+            }
+        }
+        let (k, len) = vs
+            .iter()
+            .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+            .enumerate()
+            .fold((0, 0.0), |acc, (k, l)| if l > acc.1 { (k, l) } else { acc });
+        if len.is_nan() || len <= 0.1 * eps {
+            return None;
+        }
+        let v = vs[k];
+        frame.push([v[0] / len, v[1] / len, v[2] / len]);
+    }
+    Some(frame)
 }
 
 /// The sample rule of an order: the quadrature points of degree 2p (half

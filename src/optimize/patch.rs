@@ -45,11 +45,14 @@ impl NodeCells {
     }
 }
 
-/// One patch: its cells (sorted) and the nodes it moves (sorted).
+/// One patch: its cells (sorted), the interior nodes it moves (sorted), and
+/// the boundary nodes that may slide on their entity (sorted: high-order
+/// nodes on a curve or surface, not vertices).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Patch {
     pub cells: Vec<usize>,
     pub free: Vec<usize>,
+    pub sliding: Vec<usize>,
 }
 
 /// The patches around the cells `seeds`: each seed grown by `layers` layers
@@ -111,7 +114,18 @@ pub fn build_patches(mesh: &HighOrderMesh, adj: &NodeCells, seeds: &[usize], lay
             .collect();
         free.sort_unstable();
         free.dedup();
-        patches.push(Patch { cells, free });
+        let mut sliding: Vec<usize> = cells
+            .iter()
+            .flat_map(|&c| mesh.cell(c).iter().copied())
+            .filter(|&n| {
+                n >= mesh.n_vertices
+                    && matches!(mesh.constraint[n], NodeConstraint::OnEntity { .. })
+                    && adj.of(n).iter().all(|&d| component[d] == id)
+            })
+            .collect();
+        sliding.sort_unstable();
+        sliding.dedup();
+        patches.push(Patch { cells, free, sliding });
     }
     patches
 }
