@@ -3,9 +3,11 @@
  * curved at p = 4 with ILE in one increment, first with adaptive stepping off,
  * then on: the increments taken, the load fractions and the step backs are
  * read back and printed; with adaptive stepping no cell is certified invalid.
- * At p = 3 the same mesh keeps 18 tets inverted whatever the step: adaptive
- * stepping fails at its split limit with HOC_ERROR_INVALID_ELEMENT and the
- * mesh unchanged. Also the setter's and getters' argument checks. */
+ * At p = 3 the same mesh keeps 18 tets inverted whatever the step: without
+ * the optimisation stage, adaptive stepping fails at its split limit with
+ * HOC_ERROR_INVALID_ELEMENT and the mesh unchanged; with it (the default),
+ * the run goes on and must end certified valid, or fail the same clean way.
+ * Also the setter's and getters' argument checks. */
 #include "curve_checks.h"
 
 static void run(const FixtureMesh *m, int p, int enabled, HocQuality *q, size_t *taken, size_t *backs) {
@@ -76,6 +78,7 @@ int main(int argc, char **argv) {
   HocMesh *mesh = create_fixture_mesh(&m, sphere_box_projector, &calls);
   CHECK_OK(mesh, hoc_mesh_set_order(mesh, 3, HOC_SPACING_OPTIMAL));
   CHECK_OK(mesh, hoc_mesh_set_adaptive_stepping(mesh, 1, 3));
+  CHECK_OK(mesh, hoc_mesh_set_optimize(mesh, 0));
   size_t n_nodes = 0;
   CHECK_OK(mesh, hoc_mesh_node_count(mesh, &n_nodes));
   double *x0 = (double *)malloc(sizeof(double) * 3 * n_nodes);
@@ -90,6 +93,31 @@ int main(int argc, char **argv) {
   CHECK(memcmp(x0, x1, sizeof(double) * 3 * n_nodes) == 0, "the failed run changed the mesh");
   CHECK_OK(mesh, hoc_mesh_increment_count(mesh, &taken, &backs));
   CHECK(taken == 0 && backs == 0, "a failed run left counts %zu, %zu", taken, backs);
+
+  /* The same run with the optimisation stage on. */
+  CHECK_OK(mesh, hoc_mesh_set_optimize(mesh, 1));
+  st = hoc_mesh_run_increments(mesh, 1);
+  if (st == HOC_OK) {
+    HocQuality q;
+    HocOptimization o;
+    CHECK_OK(mesh, hoc_mesh_quality(mesh, &q));
+    CHECK_OK(mesh, hoc_mesh_optimization(mesh, &o));
+    printf("p = 3, optimisation on: elastic stage stopped at load %g; %zu invalid cells -> %zu in %.2f s "
+           "(%zu cells touched); min Q3 %g, certified %g\n",
+           o.elastic_load, o.invalid_before, o.invalid_after, o.seconds, o.cells_touched, q.min_q3,
+           q.certified_min_q3);
+    CHECK(o.elastic_stopped && o.ran, "the elastic stage should have stopped (%d) and the optimisation run (%d)",
+          o.elastic_stopped, o.ran);
+    CHECK(q.n_certified_invalid == 0 && q.n_uncertain == 0 && q.certified_min_q3 > 0,
+          "a successful run left %zu invalid, %zu uncertain cells", q.n_certified_invalid, q.n_uncertain);
+  } else {
+    msg = hoc_mesh_last_error(mesh);
+    printf("p = 3, optimisation on: status %d: %s\n", st, msg);
+    CHECK(st == HOC_ERROR_INVALID_ELEMENT, "status %d", st);
+    CHECK(strstr(msg, "optimisation") != NULL, "the message does not name the optimisation: %s", msg);
+    CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, n_nodes, x1));
+    CHECK(memcmp(x0, x1, sizeof(double) * 3 * n_nodes) == 0, "the failed run changed the mesh");
+  }
   free(x0);
   free(x1);
   hoc_mesh_destroy(&mesh);

@@ -124,10 +124,11 @@ def test_tet_with_all_vertices_on_sphere_is_reported_invalid(gmsh, hocurve, tmp_
 
     With all its vertices and edges on the sphere such a tet has no interior
     freedom and folds at p = 2 (a known limit of a posteriori curving) whatever
-    the load step. hocurve must not hide it: with adaptive stepping (the
-    default) the run fails at the split limit, saying so, and writes nothing;
-    with it off, the mesh comes back and its report counts the same invalid
-    element(s) that gmsh finds.
+    the load step. With the elastic stage alone, hocurve must not hide it:
+    with adaptive stepping the run fails at the split limit, saying so, and
+    writes nothing; with it off, the mesh comes back and its report counts
+    the same invalid element(s) that gmsh finds. With the defaults, the
+    optimisation stage (boundary nodes sliding on the sphere) makes it valid.
     """
     p = 2
     src, geometry, _f, _h = linear_case(gmsh, 3, tmp_path, h=0.5, half=1.0)
@@ -135,10 +136,10 @@ def test_tet_with_all_vertices_on_sphere_is_reported_invalid(gmsh, hocurve, tmp_
     args = ["curve", src, "--order", p, "--output", out, "--report", rep]
     for g in geometry:
         args += ["--geometry", g]
-    failed = hocurve.run(*args, "--max-splits", 2)
+    failed = hocurve.run(*args, "--max-splits", 2, "--optimize", "off")
     assert failed.returncode != 0 and "inverted" in failed.stderr and "adaptive" in failed.stderr, failed.stderr
     assert not out.exists() and not rep.exists()
-    r = hocurve.curve(src, p, geometry, out, rep, "--adaptive", "off")
+    r = hocurve.curve(src, p, geometry, out, rep, "--adaptive", "off", "--optimize", "off")
     gmsh.clear()
     gmsh.open(str(out))
     etype, _e, _c = M.cells(gmsh, 3)
@@ -148,3 +149,6 @@ def test_tet_with_all_vertices_on_sphere_is_reported_invalid(gmsh, hocurve, tmp_
           f"gmsh: {n_bad} element(s) with det J <= 0 (min {det.min():.3g})")
     assert n_bad >= 1, "the case should exercise an invalid element"
     assert r["invalid_elements"] == n_bad and r["min_q3"] <= 0
+    fixed = hocurve.curve(src, p, geometry, out, rep)
+    assert fixed["certified_invalid_elements"] == 0 and fixed["certified_min_q3"] > 0, fixed
+    assert fixed["optimization"]["invalid_before"] >= 1 and fixed["optimization"]["invalid_after"] == 0
