@@ -184,6 +184,7 @@ fn options_from(args: &Args, default_order: usize) -> Result<CurveOptions> {
         Some("keep") => false,
         Some(c) => return Err(Error::InvalidInput(format!("unknown --caps '{c}' (remove or keep)"))),
     };
+    o.repair = args.on_off("repair")?.unwrap_or(o.repair);
     if let Some(s) = args.get("solver") {
         o.solver = SolverChoice::parse(s)?;
     }
@@ -312,6 +313,7 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
             "spacing",
             "solver",
             "caps",
+            "repair",
             "adaptive",
             "max-splits",
             "condense",
@@ -463,6 +465,23 @@ fn quality_json(q: &MeshQuality) -> String {
     )
 }
 
+fn repair_json(r: &hocurve::mesh::RepairSummary) -> String {
+    format!(
+        "{{\"bad_cells\": {}, \"surface_cells\": {}, \"bulge_cells\": {}, \"flips_23\": {}, \"flips_32\": {}, \
+         \"edge_removals\": {}, \"flips_22\": {}, \"cells_removed\": {}, \"cells_added\": {}, \"bad_cells_left\": {}}}",
+        r.bad_cells,
+        r.surface_cells,
+        r.bulge_cells,
+        r.flips_23,
+        r.flips_32,
+        r.edge_removals,
+        r.flips_22,
+        r.cells_removed,
+        r.cells_added,
+        r.bad_cells_left
+    )
+}
+
 fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> String {
     let r = &c.report;
     let t = &r.timings;
@@ -470,7 +489,7 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
         "{{\n  \"order\": {},\n  \"formulation\": \"{}\",\n  \"material\": \"{}\",\n  \"young\": {},\n  \
          \"poisson\": {},\n  \"increments\": {},\n  \"adaptive\": {},\n  \"max_splits\": {},\n  \
          \"increments_taken\": {},\n  \"load_fractions\": {:?},\n  \"step_backs\": [{}],\n  \"spacing\": \"{}\",\n  \"nodes\": {},\n  \"dofs\": {},\n  \"system_dofs\": {},\n  \
-         \"cells\": {},\n  \"removed_caps\": {},\n  \"projected_nodes\": {},\n  \"max_projection_distance\": {},\n{},\n  \
+         \"cells\": {},\n  \"removed_caps\": {},\n  \"repair\": {},\n  \"projected_nodes\": {},\n  \"max_projection_distance\": {},\n{},\n  \
          \"newton_history\": {:?},\n  \"linear_solver\": \"{}\",\n  \"solver_iterations\": {:?},\n  \
          \"seconds\": {{\"total\": {}, \"elevate\": {}, \"project\": {}, \"assembly\": {}, \"setup\": {}, \"solve\": {}, \"quality\": {}, \"check\": {}}},\n  \
          \"output\": {}\n}}",
@@ -501,6 +520,7 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
         r.system_dofs,
         r.cells,
         r.removed_caps,
+        repair_json(&r.repair),
         r.projected_nodes,
         num(r.max_projection_distance),
         quality_json(&r.quality),

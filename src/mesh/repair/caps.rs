@@ -20,7 +20,7 @@
 
 use std::collections::{HashMap, HashSet};
 
-use super::LinearMesh;
+use crate::mesh::LinearMesh;
 
 /// Largest angle between the outward normals of a cap's two boundary faces:
 /// beyond it the shared edge is a crease of the surface and is kept.
