@@ -28,6 +28,8 @@ pub mod caps;
 pub mod detect;
 pub mod flips;
 mod geom;
+#[cfg(test)]
+mod tests;
 
 use crate::mesh::LinearMesh;
 pub use bulge::{bulge_samples, facet_bulges, BulgeSamples};
