@@ -111,7 +111,8 @@ impl Criteria {
         let vol = orient(d, &x);
         let l2: f64 = (0..=d).flat_map(|i| (i + 1..=d).map(move |j| (i, j))).map(|(i, j)| dist2(x[i], x[j])).sum();
         let lmax = longest_edge(&x);
-        if !(vol > DEGENERATE * lmax.powi(d as i32)) {
+        // Also catches a NaN.
+        if vol.is_nan() || vol <= DEGENERATE * lmax.powi(d as i32) {
             return Assessment { quality: f64::NEG_INFINITY, surface: false, bulge: false };
         }
         let mean_ratio = if d == 2 {
