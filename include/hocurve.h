@@ -168,11 +168,16 @@ typedef struct {
    */
   size_t flips_22;
   /**
-   * Cells replaced by the flips.
+   * Bad surface cells no flip improved that were caps with faces more
+   * than 45° apart (kept by the caps step): removed like caps.
+   */
+  size_t surface_caps;
+  /**
+   * Cells of the straight mesh (after the caps step) replaced by the repair.
    */
   size_t cells_removed;
   /**
-   * Cells the flips made.
+   * Cells the repair made.
    */
   size_t cells_added;
   /**

@@ -15,7 +15,7 @@ use crate::geometry::Projector;
 use crate::mapping::ElementCache;
 use crate::material::{make_material, LinearElastic, MaterialModel};
 use crate::mesh::{
-    remove_boundary_caps, repair, validate_and_orient, HighOrderMesh, LinearMesh, NodeConstraint, RepairSummary,
+    remove_boundary_caps, repair_with, validate_and_orient, HighOrderMesh, LinearMesh, NodeConstraint, RepairSummary,
     Topology,
 };
 use crate::quadrature::simplex_rule;
@@ -314,8 +314,7 @@ pub fn curve(
         if opts.remove_caps { remove_boundary_caps(&linear) } else { (linear, (0..n_input_cells).collect()) };
     let removed_caps = n_input_cells - input_cell.len();
     let (linear, input_cell, repair_summary) = if opts.repair {
-        let bulge = crate::geometry::facet_bulges(&linear, projector)?;
-        let r = repair(&linear, &bulge);
+        let r = repair_with(&linear, |m| crate::geometry::facet_bulges(m, projector))?;
         (r.mesh, r.input_cell.iter().map(|&c| input_cell[c]).collect(), r.summary)
     } else {
         (linear, input_cell, RepairSummary::default())

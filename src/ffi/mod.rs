@@ -157,9 +157,12 @@ pub struct HocRepair {
     pub edge_removals: usize,
     /// Edge flips (2D).
     pub flips_22: usize,
-    /// Cells replaced by the flips.
+    /// Bad surface cells no flip improved that were caps with faces more
+    /// than 45° apart (kept by the caps step): removed like caps.
+    pub surface_caps: usize,
+    /// Cells of the straight mesh (after the caps step) replaced by the repair.
     pub cells_removed: usize,
-    /// Cells the flips made.
+    /// Cells the repair made.
     pub cells_added: usize,
     /// Bad cells that no flip improved.
     pub bad_cells_left: usize,
@@ -936,6 +939,7 @@ pub unsafe extern "C" fn hoc_mesh_repair_summary(mesh: *const HocMesh, out: *mut
             flips_32: r.flips_32,
             edge_removals: r.edge_removals,
             flips_22: r.flips_22,
+            surface_caps: r.surface_caps,
             cells_removed: r.cells_removed,
             cells_added: r.cells_added,
             bad_cells_left: r.bad_cells_left,

@@ -60,7 +60,7 @@ pub struct Work<'a> {
     pub cells: Vec<[usize; 4]>,
     pub alive: Vec<bool>,
     pub assessment: Vec<Assessment>,
-    /// The cells of the input mesh that each cell overlaps (its own index for an input cell).
+    /// The cells of the reference mesh that each cell overlaps.
     pub origin: Vec<Vec<usize>>,
     /// Facet → the (one or two) cells on it.
     facets: HashMap<FacetKey, [usize; 2]>,
@@ -71,8 +71,9 @@ pub struct Work<'a> {
 }
 
 impl<'a> Work<'a> {
-    /// `mesh`: validated, positively oriented, dim 2 or 3.
-    pub fn new(mesh: &'a LinearMesh, crit: &'a Criteria) -> Work<'a> {
+    /// `mesh`: validated, positively oriented, dim 2 or 3; `origin[c]`: the
+    /// cells of some reference mesh that cell c overlaps.
+    pub fn new(mesh: &'a LinearMesh, crit: &'a Criteria, origin: Vec<Vec<usize>>) -> Work<'a> {
         let d = mesh.dim;
         let cells: Vec<[usize; 4]> = mesh
             .cells
@@ -96,8 +97,8 @@ impl<'a> Work<'a> {
             edges: HashMap::new(),
             boundary: Default::default(),
         };
-        for (i, c) in cells.into_iter().enumerate() {
-            w.insert(c, vec![i], false);
+        for (c, o) in cells.into_iter().zip(origin) {
+            w.insert(c, o, false);
         }
         w.boundary = w.facets.iter().filter(|(_, c)| c[1] == NONE).map(|(f, _)| *f).collect();
         let boundary = &w.boundary;

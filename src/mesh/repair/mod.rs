@@ -39,8 +39,11 @@ pub use flips::FlipKind;
 use flips::Work;
 use geom::barycentric;
 
-/// Passes over the bad cells at most.
+/// Passes over the bad cells at most, in one round of flips.
 pub const MAX_PASSES: usize = 20;
+
+/// Rounds of flips at most ([`repair_with`]).
+pub const MAX_ROUNDS: usize = 4;
 
 /// What [`repair`] did.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -59,6 +62,11 @@ pub struct RepairSummary {
     pub edge_removals: usize,
     /// Edge flips (2D).
     pub flips_22: usize,
+    /// Bad surface cells that no flip improved and that were boundary caps
+    /// whose faces meet at more than [`caps::CAP_MAX_NORMAL_ANGLE_DEG`] (so
+    /// the caps step kept them): removed like caps, their surface edge
+    /// flipped to their chord ([`repair_with`]).
+    pub surface_caps: usize,
     /// Cells of the mesh given that are not in the result.
     pub cells_removed: usize,
     /// Cells of the result that are not in the mesh given.
@@ -87,27 +95,98 @@ pub struct Repaired {
     pub summary: RepairSummary,
 }
 
-/// Flip the bad cells of `mesh` away (module docs). `mesh` is validated and
-/// positively oriented (see [`crate::mesh::validate_and_orient`]); `bulge`
-/// has one value per facet ([`facet_bulges`]).
+/// Flip the bad cells of `mesh` away: one round of [`repair_with`], with
+/// the bulges known. `mesh` is validated and positively oriented (see
+/// [`crate::mesh::validate_and_orient`]); `bulge` has one value per facet
+/// ([`facet_bulges`]). Facets are unchanged; the cells no flip touched come
+/// first, in their order, then the new cells.
 pub fn repair(mesh: &LinearMesh, bulge: &[f64]) -> Repaired {
+    let origin = (0..mesh.n_cells()).map(|c| vec![c]).collect();
+    flip_round(mesh, bulge, origin, mesh).0
+}
+
+/// The repair (module docs): rounds of flips ([`repair`]); after each, the
+/// bad surface cells left that are boundary caps, whatever the angle of their
+/// faces, are removed ([`caps::sweep`]) and the bulges measured again by
+/// `measure` (one value per facet of the mesh it is given, see
+/// [`crate::geometry::facet_bulges`]) for the next round, at most
+/// [`MAX_ROUNDS`]. Cells no step touched keep their relative order.
+pub fn repair_with<E>(
+    mesh: &LinearMesh,
+    mut measure: impl FnMut(&LinearMesh) -> Result<Vec<f64>, E>,
+) -> Result<Repaired, E> {
     let n = mesh.n_cells();
-    let identity = || Repaired { mesh: mesh.clone(), input_cell: (0..n).collect(), summary: RepairSummary::default() };
+    let mut cur = mesh.clone();
+    // Per cell of `cur`: the cells of `mesh` it overlaps, and whether it is one of them unchanged.
+    let mut origin: Vec<Vec<usize>> = (0..n).map(|c| vec![c]).collect();
+    let mut same: Vec<Option<usize>> = (0..n).map(Some).collect();
+    let mut summary = RepairSummary::default();
+    for round in 0..MAX_ROUNDS {
+        let bulge = measure(&cur)?;
+        let (r, o) = flip_round(&cur, &bulge, origin, mesh);
+        let s = r.summary;
+        if round == 0 {
+            summary.bad_cells = s.bad_cells;
+            summary.surface_cells = s.surface_cells;
+            summary.bulge_cells = s.bulge_cells;
+        }
+        summary.flips_23 += s.flips_23;
+        summary.flips_32 += s.flips_32;
+        summary.edge_removals += s.edge_removals;
+        summary.flips_22 += s.flips_22;
+        summary.bad_cells_left = s.bad_cells_left;
+        let n_kept = r.mesh.n_cells() - s.cells_added;
+        same = (0..r.mesh.n_cells()).map(|i| if i < n_kept { same[r.input_cell[i]] } else { None }).collect();
+        origin = o;
+        cur = r.mesh;
+        if s.bad_cells_left == 0 || round + 1 == MAX_ROUNDS {
+            break;
+        }
+        let surface: std::collections::HashSet<usize> =
+            bad_cells(&cur, &bulge).into_iter().filter(|(_, a)| a.surface).map(|(c, _)| c).collect();
+        let Some((next, kept)) = caps::sweep(&cur, |c, _| surface.contains(&c)) else { break };
+        summary.surface_caps += cur.n_cells() - next.n_cells();
+        origin = kept.iter().map(|&c| std::mem::take(&mut origin[c])).collect();
+        same = kept.iter().map(|&c| same[c]).collect();
+        cur = next;
+    }
+    let untouched = same.iter().flatten().count();
+    summary.cells_removed = n - untouched;
+    summary.cells_added = cur.n_cells() - untouched;
+    let d = mesh.dim;
+    let input_cell = (0..cur.n_cells())
+        .map(|c| same[c].unwrap_or_else(|| locate(mesh, &cur.cells[c * (d + 1)..(c + 1) * (d + 1)], &origin[c])))
+        .collect();
+    Ok(Repaired { mesh: cur, input_cell, summary })
+}
+
+/// One round of flips on `mesh`, whose cell c overlaps the cells `origin[c]`
+/// of `base`: the repaired mesh, and the origins of its cells. Its
+/// `input_cell` gives an untouched cell's index in `mesh` and a new cell's in
+/// `base` (the same mesh for [`repair`]).
+fn flip_round(
+    mesh: &LinearMesh,
+    bulge: &[f64],
+    origin: Vec<Vec<usize>>,
+    base: &LinearMesh,
+) -> (Repaired, Vec<Vec<usize>>) {
+    let n = mesh.n_cells();
+    let mut summary = RepairSummary::default();
     if !(mesh.dim == 2 || mesh.dim == 3) || bulge.len() != mesh.n_facets() {
-        return identity();
+        let input_cell = (0..n).collect();
+        return (Repaired { mesh: mesh.clone(), input_cell, summary }, origin);
     }
     let crit = Criteria::new(mesh, bulge);
-    let mut w = Work::new(mesh, &crit);
-    let mut summary = RepairSummary::default();
+    let mut w = Work::new(mesh, &crit, origin);
     for a in w.assessment.iter().filter(|a| a.is_bad()) {
         summary.bad_cells += 1;
         summary.surface_cells += a.surface as usize;
         summary.bulge_cells += a.bulge as usize;
     }
-    if summary.bad_cells == 0 {
-        return Repaired { summary, ..identity() };
-    }
     for _ in 0..MAX_PASSES {
+        if summary.bad_cells == 0 {
+            break;
+        }
         let bad: Vec<usize> = (0..w.cells.len()).filter(|&c| w.alive[c] && w.assessment[c].is_bad()).collect();
         let mut changed = false;
         for c in bad {
@@ -139,21 +218,21 @@ pub fn repair(mesh: &LinearMesh, bulge: &[f64]) -> Repaired {
     let d = mesh.dim;
     let mut out = mesh.clone();
     out.cells.clear();
-    let mut input_cell = Vec::new();
-    let live = |range: std::ops::Range<usize>| range.filter(|&c| w.alive[c]).collect::<Vec<_>>();
-    for c in live(0..n) {
+    let (mut input_cell, mut origin) = (Vec::new(), Vec::new());
+    let live: Vec<usize> = (0..w.cells.len()).filter(|&c| w.alive[c]).collect();
+    for &c in &live {
         out.cells.extend_from_slice(&w.cells[c][..=d]);
-        input_cell.push(c);
-    }
-    for c in live(n..w.cells.len()) {
-        out.cells.extend_from_slice(&w.cells[c][..=d]);
-        input_cell.push(locate(mesh, &w.cells[c][..=d], &w.origin[c]));
-        summary.cells_added += 1;
+        if c < n {
+            input_cell.push(c);
+        } else {
+            input_cell.push(locate(base, &w.cells[c][..=d], &w.origin[c]));
+            summary.cells_added += 1;
+        }
         summary.bad_cells_left += w.assessment[c].is_bad() as usize;
+        origin.push(std::mem::take(&mut w.origin[c]));
     }
     summary.cells_removed = (0..n).filter(|&c| !w.alive[c]).count();
-    summary.bad_cells_left += (0..n).filter(|&c| w.alive[c] && w.assessment[c].is_bad()).count();
-    Repaired { mesh: out, input_cell, summary }
+    (Repaired { mesh: out, input_cell, summary }, origin)
 }
 
 /// The cell among `candidates` (cells of `mesh`) that contains the centroid of `cell`.
