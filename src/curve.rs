@@ -102,7 +102,7 @@ pub struct CurveOptions {
     /// stay valid once curved with their vertices fixed (all vertices on one
     /// surface that bulges into the domain, or a boundary facet whose bulge
     /// exceeds half the height of the opposite vertex) are removed by local
-    /// flips, which keep the boundary (see [`crate::mesh::repair`]). Needs
+    /// flips, which keep the boundary (see [`mod@crate::mesh::repair`]). Needs
     /// one projection of a few points per tagged facet.
     pub repair: bool,
     /// Adaptive load stepping ([`solve_increments`]): step back and halve an

@@ -46,8 +46,8 @@ USAGE:
                 [--formulation linear|ile] [--material linear]
                 [--young E] [--poisson NU] [--increments N]
                 [--spacing optimal|equispaced] [--solver auto|direct|iterative]
-                [--caps remove|keep] [--adaptive on|off] [--max-splits K]
-                [--condense on|off]
+                [--caps remove|keep] [--repair on|off] [--adaptive on|off]
+                [--max-splits K] [--condense on|off]
       Curve a linear gmsh (.msh 4.1) mesh. TAG is the elementary entity tag of
       the boundary facets (or 3D feature curves) that lie on SHAPE:
         sphere:cx,cy,cz,r        circle:cx,cy,r (2D)     circle3:cx,cy,cz,nx,ny,nz,r
@@ -55,7 +55,12 @@ USAGE:
         plane:px,py,pz,nx,ny,nz  line:px,py,pz,dx,dy,dz  naca4:DDDD,chord,x0,y0
       Boundary facets whose tag has no shape stay straight. 3D boundary caps
       (tets with two faces on one smooth surface, which cannot stay valid) are
-      removed unless --caps keep; the report says how many.
+      removed unless --caps keep; the report says how many. The repair (on
+      unless --repair off) then flips away the cells that cannot stay valid
+      with their vertices fixed: all vertices on one surface that bulges into
+      the domain, or a boundary facet bulging past half the height of the
+      opposite vertex (measured by projecting a few points of each facet);
+      the report's repair section says what it found and did.
       Adaptive load stepping (default on, off for --formulation linear): an
       increment that inverts a cell (certified det J bounds) or whose Newton
       iteration fails is undone and halved, at most K times (--max-splits,

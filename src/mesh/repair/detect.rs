@@ -22,8 +22,8 @@
 //! The quality of a cell, in [−2, 1] (1 for a regular straight cell with no
 //! bulge, negative exactly for bad cells), is the smallest of
 //!
-//! * its mean ratio q_mr = d (d!|K|)^(2/d) … normalised to 1 for the regular
-//!   simplex (12 (3|K|)^(2/3) / Σ l² for a tet, 4√3 |K| / Σ l² for a triangle);
+//! * its mean ratio q_mr, 1 for the regular simplex: 12 (3|K|)^(2/3) / Σ l²
+//!   for a tet, 4√3 |K| / Σ l² for a triangle (l the edge lengths);
 //! * (h − β / [`BULGE_FRACTION`]) / (c L) over its boundary facets with β > 0,
 //!   L the facet's longest edge and c the height-to-edge ratio of the regular
 //!   simplex (√(2/3), √3/2): the height left once the bulge is taken out;

@@ -3,9 +3,10 @@
 //!
 //! Two steps, each optional ([`crate::curve::CurveOptions`]):
 //!
-//! 1. [`caps`]: boundary caps (tets with two faces on one smooth surface)
-//!    are removed, which flips their surface edge: purely topological.
-//! 2. [`repair`]: given how far the curved boundary bulges over each boundary
+//! 1. [`caps`]: boundary caps (tets with two faces on one smooth surface,
+//!    less than 45° apart) are removed, which flips their surface edge:
+//!    purely topological, no geometry needed.
+//! 2. [`repair_with`]: given how far the curved boundary bulges over each boundary
 //!    facet ([`bulge`], measured by projecting a few points of each facet),
 //!    the *bad* cells ([`detect`]: all vertices on one surface that bulges
 //!    into the domain, or a boundary facet bulging past half the height of
@@ -17,7 +18,12 @@
 //!    cell is bad or no flip improves (at most [`MAX_PASSES`]). A bad cell no
 //!    flip improves is left as it is. Boundary facets, vertices and
 //!    orientations are kept; every accepted flip strictly raises the sorted
-//!    vector of qualities, so no configuration comes back.
+//!    vector of qualities, so no configuration comes back. Then a bad
+//!    surface cell that no flip improved and that is a cap whose faces are
+//!    more than 45° apart (so step 1 kept it; coarse meshes of a sphere make
+//!    them at 50–90°) is removed like a cap: the geometry has shown that it
+//!    lies where curving removes the domain. The new facets are measured
+//!    again and another round of flips runs (at most [`MAX_ROUNDS`]).
 //!
 //! The cells of the result are the cells of the input that no flip touched,
 //! in their order, then the new cells. Each maps to an input cell (see
