@@ -140,7 +140,7 @@ typedef struct {
   /**
    * Bad cells found by the last run: all vertices on one surface that
    * bulges into the domain, or a boundary facet bulging past half the
-   * height of the opposite vertex.
+   * height of the opposite vertex, itself on the boundary.
    */
   size_t bad_cells;
   /**
@@ -469,7 +469,8 @@ HocStatus hoc_mesh_set_remove_caps(HocMesh *mesh, int remove);
  * vertices all lie on one surface that bulges into the domain (e.g. a tet
  * inside the shell between a sphere cavity and its straight facets), or
  * whose boundary facet bulges, once curved, past half the height of the
- * opposite vertex, cannot stay valid with its vertices fixed. The run
+ * opposite vertex (itself on the boundary), cannot stay valid with its
+ * vertices fixed. The run
  * projects a few points of every tagged facet to measure the bulges, then
  * removes such cells by local flips (2-3, 3-2, edge removal; edge flips in
  * 2D) that keep the boundary facets and vertices: the curved mesh may have

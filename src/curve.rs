@@ -101,7 +101,8 @@ pub struct CurveOptions {
     /// Repair the linear mesh before curving (default on): cells that cannot
     /// stay valid once curved with their vertices fixed (all vertices on one
     /// surface that bulges into the domain, or a boundary facet whose bulge
-    /// exceeds half the height of the opposite vertex) are removed by local
+    /// exceeds half the height of the opposite vertex, itself on the
+    /// boundary) are removed by local
     /// flips, which keep the boundary (see [`mod@crate::mesh::repair`]). Needs
     /// one projection of a few points per tagged facet.
     pub repair: bool,

@@ -143,7 +143,7 @@ pub struct HocRepair {
     pub removed_caps: usize,
     /// Bad cells found by the last run: all vertices on one surface that
     /// bulges into the domain, or a boundary facet bulging past half the
-    /// height of the opposite vertex.
+    /// height of the opposite vertex, itself on the boundary.
     pub bad_cells: usize,
     /// Of them, with all vertices on one surface.
     pub surface_cells: usize,
@@ -665,7 +665,8 @@ pub unsafe extern "C" fn hoc_mesh_set_remove_caps(mesh: *mut HocMesh, remove: c_
 /// vertices all lie on one surface that bulges into the domain (e.g. a tet
 /// inside the shell between a sphere cavity and its straight facets), or
 /// whose boundary facet bulges, once curved, past half the height of the
-/// opposite vertex, cannot stay valid with its vertices fixed. The run
+/// opposite vertex (itself on the boundary), cannot stay valid with its
+/// vertices fixed. The run
 /// projects a few points of every tagged facet to measure the bulges, then
 /// removes such cells by local flips (2-3, 3-2, edge removal; edge flips in
 /// 2D) that keep the boundary facets and vertices: the curved mesh may have

@@ -59,7 +59,8 @@ USAGE:
       unless --repair off) then flips away the cells that cannot stay valid
       with their vertices fixed: all vertices on one surface that bulges into
       the domain, or a boundary facet bulging past half the height of the
-      opposite vertex (measured by projecting a few points of each facet);
+      opposite vertex, itself on the boundary (measured by projecting a few
+      points of each facet);
       the report's repair section says what it found and did.
       Adaptive load stepping (default on, off for --formulation linear): an
       increment that inverts a cell (certified det J bounds) or whose Newton

@@ -12,7 +12,10 @@
 //!   curved one (on a sphere cavity: inside the ball), the region that curving
 //!   removes from the domain, and it has nowhere to go; or
 //! * **bulge**: one of its facets is a boundary facet whose bulge exceeds
-//!   [`BULGE_FRACTION`] of the height h of the opposite vertex over it. At
+//!   [`BULGE_FRACTION`] of the height h of the opposite vertex over it, and
+//!   that vertex is on the boundary, so the solve keeps it fixed. (An interior
+//!   apex moves with the boundary: the first layer of the demo's stretched
+//!   boundary layer around a cylinder has β = 1.64 h and curves well.) At
 //!   p = 2 the Jacobian at a curved edge's midpoint is det J₀ (1 − 2 ∇(λ_a +
 //!   λ_b)·δ) for a displacement δ of that midpoint, and 2 ∇(λ_a + λ_b)·δ is
 //!   about 4β/(3h) with the apex above the facet's centroid: such cells invert,
@@ -24,8 +27,8 @@
 //!
 //! * its mean ratio q_mr, 1 for the regular simplex: 12 (3|K|)^(2/3) / Σ l²
 //!   for a tet, 4√3 |K| / Σ l² for a triangle (l the edge lengths);
-//! * (h − β / [`BULGE_FRACTION`]) / (c L) over its boundary facets with β > 0,
-//!   L the facet's longest edge and c the height-to-edge ratio of the regular
+//! * (h − β / [`BULGE_FRACTION`]) / (c L) over its boundary facets with β > 0
+//!   and a boundary vertex opposite, L the facet's longest edge and c the height-to-edge ratio of the regular
 //!   simplex (√(2/3), √3/2): the height left once the bulge is taken out;
 //! * q_mr − 1 for a surface cell.
 
@@ -72,6 +75,9 @@ pub struct Criteria {
     /// Per vertex: the tags of the facets at it, each with whether one of
     /// those facets bulges into the domain.
     surfaces: Vec<Vec<(i32, bool)>>,
+    /// Per vertex: on the boundary (a vertex of a facet with one cell,
+    /// tagged or not), hence fixed in the solve.
+    boundary_vertex: Vec<bool>,
 }
 
 impl Criteria {
@@ -91,7 +97,13 @@ impl Criteria {
             }
             map.insert(facet_key(f), b);
         }
-        Criteria { dim: d, bulge: map, surfaces }
+        let mut boundary_vertex = vec![false; mesh.n_vertices()];
+        for (f, _) in facet_counts(mesh).into_iter().filter(|&(_, n)| n == 1) {
+            for &v in f.iter().filter(|&&v| v != usize::MAX) {
+                boundary_vertex[v] = true;
+            }
+        }
+        Criteria { dim: d, bulge: map, surfaces, boundary_vertex }
     }
 
     /// Assess the cell with vertices `cell` (`dim + 1`, positively oriented
@@ -128,7 +140,7 @@ impl Criteria {
             let f: Vec<usize> = (0..=d).filter(|&j| j != k).map(|j| cell[j]).collect();
             let key = facet_key(&f);
             let Some(&b) = self.bulge.get(&key) else { continue };
-            if b <= 0.0 || !boundary(&key) {
+            if b <= 0.0 || !boundary(&key) || !self.boundary_vertex[cell[k]] {
                 continue;
             }
             let y: Vec<[f64; 3]> = (0..=d).filter(|&j| j != k).map(|j| x[j]).collect();
@@ -165,6 +177,18 @@ impl Criteria {
 pub fn bad_cells(mesh: &LinearMesh, bulge: &[f64]) -> Vec<(usize, Assessment)> {
     let crit = Criteria::new(mesh, bulge);
     let d = mesh.dim;
+    let count = facet_counts(mesh);
+    mesh.cells
+        .chunks_exact(d + 1)
+        .enumerate()
+        .map(|(i, c)| (i, crit.assess(&mesh.coords, c, |f| count.get(f) == Some(&1))))
+        .filter(|(_, a)| a.is_bad())
+        .collect()
+}
+
+/// Number of cells on each facet of `mesh`.
+fn facet_counts(mesh: &LinearMesh) -> HashMap<FacetKey, u8> {
+    let d = mesh.dim;
     let mut count: HashMap<FacetKey, u8> = HashMap::new();
     for c in mesh.cells.chunks_exact(d + 1) {
         for k in 0..=d {
@@ -172,12 +196,7 @@ pub fn bad_cells(mesh: &LinearMesh, bulge: &[f64]) -> Vec<(usize, Assessment)> {
             *count.entry(facet_key(&f)).or_default() += 1;
         }
     }
-    mesh.cells
-        .chunks_exact(d + 1)
-        .enumerate()
-        .map(|(i, c)| (i, crit.assess(&mesh.coords, c, |f| count.get(f) == Some(&1))))
-        .filter(|(_, a)| a.is_bad())
-        .collect()
+    count
 }
 
 fn dist2(a: [f64; 3], b: [f64; 3]) -> f64 {

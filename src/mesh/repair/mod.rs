@@ -10,7 +10,7 @@
 //!    facet ([`bulge`], measured by projecting a few points of each facet),
 //!    the *bad* cells ([`detect`]: all vertices on one surface that bulges
 //!    into the domain, or a boundary facet bulging past half the height of
-//!    the opposite vertex) are removed by local flips ([`flips`]: 2-3, 3-2
+//!    the opposite vertex, itself on the boundary) are removed by local flips ([`flips`]: 2-3, 3-2
 //!    and edge removal in 3D, edge flips in 2D). For each bad cell, the valid
 //!    flip that removes it with the best smallest quality of its new cells
 //!    (a quality that counts the bulge, [`detect`]) is applied if that beats

@@ -233,3 +233,21 @@ fn a_bad_cell_that_no_flip_improves_is_left_and_the_repair_stops() {
     assert_eq!((r.summary.bad_cells, r.summary.flips(), r.summary.bad_cells_left), (1, 0, 1));
     assert_eq!(r.input_cell, vec![0]);
 }
+
+#[test]
+fn a_facet_bulging_toward_an_interior_vertex_is_left_to_the_solve() {
+    // Four triangles around the interior vertex o, 0.1 above the tagged edge ab
+    // that bulges 0.3 toward it: o is free in the solve, which moves it.
+    let (a, b, c, d, o) = (0, 1, 2, 3, 4);
+    let m = LinearMesh {
+        dim: 2,
+        coords: vec![0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0, 1.0, 0.5, 0.1],
+        cells: vec![a, b, o, b, c, o, c, d, o, d, a, o],
+        facets: vec![a, b],
+        facet_tags: vec![1],
+        ..Default::default()
+    };
+    let (m, _) = crate::mesh::validate_and_orient(&m).unwrap();
+    assert!(bad_cells(&m, &[0.3]).is_empty());
+    assert_eq!(repaired(&m, &[0.3]).summary, RepairSummary::default());
+}
