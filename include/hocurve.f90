@@ -86,6 +86,16 @@ module hocurve
     real(c_double) :: min_q3_before, min_q3_after, seconds
   end type hoc_optimization
 
+  !> HocRepair: boundary caps removed; bad cells found by the last run (all, on one
+  !> surface, bulging), flips by kind (2-3, 3-2, edge removal, 2D edge flip), surface
+  !> caps removed, cells removed and added, bad cells left.
+  type, bind(C), public :: hoc_repair
+    integer(c_size_t) :: removed_caps
+    integer(c_size_t) :: bad_cells, surface_cells, bulge_cells
+    integer(c_size_t) :: flips_23, flips_32, edge_removals, flips_22, surface_caps
+    integer(c_size_t) :: cells_removed, cells_added, bad_cells_left
+  end type hoc_repair
+
   abstract interface
     !> HocProjectFn: project n_points points (n_points*dim coordinates) onto
     !> entity (entity_dim, entity_tag); return 0 on success.
@@ -208,6 +218,13 @@ module hocurve
       integer(c_int), value :: remove
       integer(c_int) :: status
     end function hoc_mesh_set_remove_caps
+
+    function hoc_mesh_set_repair(mesh, enabled) bind(C, name="hoc_mesh_set_repair") result(status)
+      import :: c_int, c_ptr
+      type(c_ptr), value :: mesh
+      integer(c_int), value :: enabled
+      integer(c_int) :: status
+    end function hoc_mesh_set_repair
 
     function hoc_mesh_get_input_cells(mesh, n_cells, input_cells) &
         bind(C, name="hoc_mesh_get_input_cells") result(status)
@@ -335,6 +352,13 @@ module hocurve
       integer(c_int) :: status
     end function hoc_mesh_quality
 
+    function hoc_mesh_repair_summary(mesh, repair) bind(C, name="hoc_mesh_repair_summary") result(status)
+      import :: c_int, c_ptr, hoc_repair
+      type(c_ptr), value :: mesh
+      type(hoc_repair), intent(out) :: repair
+      integer(c_int) :: status
+    end function hoc_mesh_repair_summary
+
     function hoc_mesh_cell_quality(mesh, measure, n, values) &
         bind(C, name="hoc_mesh_cell_quality") result(status)
       import :: c_int, c_ptr, c_size_t, c_double
@@ -411,7 +435,8 @@ module hocurve
 
   public :: hoc_mesh_create, hoc_mesh_destroy, hoc_mesh_set_boundary, hoc_mesh_set_feature_edges, &
             hoc_mesh_set_projector, hoc_mesh_set_progress, hoc_mesh_set_linear_solver, &
-            hoc_mesh_set_threads, hoc_mesh_set_remove_caps, hoc_mesh_get_input_cells, hoc_mesh_set_order, &
+            hoc_mesh_set_threads, hoc_mesh_set_remove_caps, hoc_mesh_set_repair, hoc_mesh_get_input_cells, &
+            hoc_mesh_set_order, hoc_mesh_repair_summary, &
             hoc_mesh_set_material, hoc_mesh_set_formulation, hoc_mesh_set_newton, hoc_mesh_set_fibres, &
             hoc_mesh_set_adaptive_stepping, hoc_mesh_set_static_condensation, hoc_mesh_run_increments, &
             hoc_mesh_set_optimize, hoc_mesh_optimization, &

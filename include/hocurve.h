@@ -172,6 +172,65 @@ typedef struct {
 } HocQuality;
 
 /**
+ * What the repair of the linear mesh did (hoc_mesh_repair_summary): boundary
+ * caps removed (hoc_mesh_set_remove_caps) and cells flipped away by the last
+ * run (hoc_mesh_set_repair).
+ */
+typedef struct {
+  /**
+   * Boundary caps removed.
+   */
+  size_t removed_caps;
+  /**
+   * Bad cells found by the last run: all vertices on one surface that
+   * bulges into the domain, or a boundary facet bulging past half the
+   * height of the opposite vertex, itself on the boundary.
+   */
+  size_t bad_cells;
+  /**
+   * Of them, with all vertices on one surface.
+   */
+  size_t surface_cells;
+  /**
+   * Of them, with a boundary facet bulging too far.
+   */
+  size_t bulge_cells;
+  /**
+   * 2-3 flips (3D).
+   */
+  size_t flips_23;
+  /**
+   * 3-2 flips (3D).
+   */
+  size_t flips_32;
+  /**
+   * Removals of an edge with four or more tets around it (3D).
+   */
+  size_t edge_removals;
+  /**
+   * Edge flips (2D).
+   */
+  size_t flips_22;
+  /**
+   * Bad surface cells no flip improved that were caps with faces more
+   * than 45° apart (kept by the caps step): removed like caps.
+   */
+  size_t surface_caps;
+  /**
+   * Cells of the straight mesh (after the caps step) replaced by the repair.
+   */
+  size_t cells_removed;
+  /**
+   * Cells the repair made.
+   */
+  size_t cells_added;
+  /**
+   * Bad cells that no flip improved.
+   */
+  size_t bad_cells_left;
+} HocRepair;
+
+/**
  * Why adaptive load stepping rejected an increment (hoc_mesh_get_step_backs).
  */
 typedef int HocStepBackReason;
@@ -450,6 +509,26 @@ HocStatus hoc_mesh_set_threads(HocMesh *mesh, int n_threads);
 HocStatus hoc_mesh_set_remove_caps(HocMesh *mesh, int remove);
 
 /**
+ * Whether each run repairs the linear mesh first (default 1). A cell whose
+ * vertices all lie on one surface that bulges into the domain (e.g. a tet
+ * inside the shell between a sphere cavity and its straight facets), or
+ * whose boundary facet bulges, once curved, past half the height of the
+ * opposite vertex (itself on the boundary), cannot stay valid with its
+ * vertices fixed. The run
+ * projects a few points of every tagged facet to measure the bulges, then
+ * removes such cells by local flips (2-3, 3-2, edge removal; edge flips in
+ * 2D) that keep the boundary facets and vertices: the curved mesh may have
+ * other cells than the straight one (see hoc_mesh_cell_count,
+ * hoc_mesh_get_input_cells and hoc_mesh_repair_summary). Takes effect at
+ * the next run.
+ *
+ * @param[in,out] mesh the handle
+ * @param[in] enabled 1 on, 0 off
+ * @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
+ */
+HocStatus hoc_mesh_set_repair(HocMesh *mesh, int enabled);
+
+/**
  * Static condensation of the cell-interior nodes (default 1). The nodes
  * inside a cell (from p = 4 for tets, p = 3 for triangles) couple only with
  * that cell's nodes; they are eliminated cell by cell before each linear
@@ -587,6 +666,16 @@ HocStatus hoc_mesh_run_increments(HocMesh *mesh, int increments);
 HocStatus hoc_mesh_quality(const HocMesh *mesh, HocQuality *out);
 
 /**
+ * What the repair did: the boundary caps removed, and the flips of the last
+ * successful run (zero before a run, or when the run did not repair).
+ *
+ * @param[in] mesh the handle
+ * @param[out] out the counts
+ * @return HOC_OK or HOC_ERROR_NULL_POINTER
+ */
+HocStatus hoc_mesh_repair_summary(const HocMesh *mesh, HocRepair *out);
+
+/**
  * Per-cell quality Q`measure` (1, 2 or 3).
  *
  * @param[in] mesh the handle
@@ -655,9 +744,12 @@ HocStatus hoc_mesh_node_count(const HocMesh *mesh, size_t *n_nodes);
 HocStatus hoc_mesh_cell_count(const HocMesh *mesh, size_t *n_cells, size_t *nodes_per_cell);
 
 /**
- * For each cell of the current mesh, the index (0-based) of the input cell
- * it is: the cells are the input cells in their order, less the boundary
- * caps removed (hoc_mesh_set_remove_caps).
+ * For each cell of the current mesh, the index (0-based) of an input cell.
+ * The straight mesh is the input cells in their order, less the boundary
+ * caps removed (hoc_mesh_set_remove_caps). After a run that repaired cells
+ * (hoc_mesh_set_repair), the cells no flip touched come first, in that
+ * order, then the new cells, each mapped to the input cell that contains
+ * its centroid.
  *
  * @param[in] mesh the handle
  * @param[in] n_cells must equal the count of hoc_mesh_cell_count

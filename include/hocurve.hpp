@@ -217,6 +217,8 @@ class Mesh {
   void set_threads(int n_threads) { check(hoc_mesh_set_threads(mesh_, n_threads), mesh_); }
   /** Remove boundary caps before curving (default true). */
   void set_remove_caps(bool remove) { check(hoc_mesh_set_remove_caps(mesh_, remove ? 1 : 0), mesh_); }
+  /** Repair the linear mesh at each run: flip away cells that cannot stay valid once curved (default true). */
+  void set_repair(bool enabled) { check(hoc_mesh_set_repair(mesh_, enabled ? 1 : 0), mesh_); }
   void set_order(int order, HocNodeSpacing spacing = HOC_SPACING_OPTIMAL) {
     check(hoc_mesh_set_order(mesh_, order, spacing), mesh_);
   }
@@ -267,6 +269,12 @@ class Mesh {
     HocOptimization o{};
     check(hoc_mesh_optimization(mesh_, &o), mesh_);
     return o;
+  }
+  /** Boundary caps removed and the last run's repair flips. */
+  HocRepair repair_summary() const {
+    HocRepair r{};
+    check(hoc_mesh_repair_summary(mesh_, &r), mesh_);
+    return r;
   }
   /** Per-cell quality, measure 1..3. */
   std::vector<double> cell_quality(int measure) const {

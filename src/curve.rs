@@ -14,7 +14,10 @@ use crate::assembly::{
 use crate::geometry::Projector;
 use crate::mapping::ElementCache;
 use crate::material::{make_material, LinearElastic, MaterialModel};
-use crate::mesh::{remove_boundary_caps, validate_and_orient, HighOrderMesh, LinearMesh, NodeConstraint, Topology};
+use crate::mesh::{
+    remove_boundary_caps, repair_with, validate_and_orient, HighOrderMesh, LinearMesh, NodeConstraint, RepairSummary,
+    Topology,
+};
 use crate::optimize::{self, OptimizeOptions, OptimizeReport};
 use crate::quadrature::simplex_rule;
 use crate::quality::{self, ElementQuality, MeshQuality};
@@ -96,6 +99,14 @@ pub struct CurveOptions {
     /// with two faces on one smooth surface, which no curving keeps valid
     /// (see [`crate::mesh::caps`]). The curved mesh then has fewer cells.
     pub remove_caps: bool,
+    /// Repair the linear mesh before curving (default on): cells that cannot
+    /// stay valid once curved with their vertices fixed (all vertices on one
+    /// surface that bulges into the domain, or a boundary facet whose bulge
+    /// exceeds half the height of the opposite vertex, itself on the
+    /// boundary) are removed by local
+    /// flips, which keep the boundary (see [`mod@crate::mesh::repair`]). Needs
+    /// one projection of a few points per tagged facet.
+    pub repair: bool,
     /// Adaptive load stepping ([`solve_increments`]): step back and halve an
     /// increment that inverts a cell (certified check) or whose Newton
     /// iteration fails. None (default): on for the incremental formulations
@@ -148,6 +159,7 @@ impl Default for CurveOptions {
             solver: SolverChoice::Auto,
             direct_ordering: DirectOrdering::Auto,
             remove_caps: true,
+            repair: true,
             adaptive: None,
             max_splits: DEFAULT_MAX_SPLITS,
             condense: true,
@@ -220,7 +232,10 @@ pub struct CurveReport {
     pub reoriented_cells: usize,
     /// Boundary caps removed before curving (`CurveOptions::remove_caps`).
     pub removed_caps: usize,
-    /// For each cell of the curved mesh, its index among the input cells.
+    /// What the repair did (`CurveOptions::repair`; all zero when off).
+    pub repair: RepairSummary,
+    /// For each cell of the curved mesh, an input cell: itself, or for a cell
+    /// made by the repair, the input cell that contains its centroid.
     pub input_cell: Vec<usize>,
     pub projected_nodes: usize,
     /// Largest distance between a straight node and its projection.
@@ -329,6 +344,13 @@ pub fn curve(
     let n_input_cells = linear.n_cells();
     let (linear, input_cell) =
         if opts.remove_caps { remove_boundary_caps(&linear) } else { (linear, (0..n_input_cells).collect()) };
+    let removed_caps = n_input_cells - input_cell.len();
+    let (linear, input_cell, repair_summary) = if opts.repair {
+        let r = repair_with(&linear, |m| crate::geometry::facet_bulges(m, projector))?;
+        (r.mesh, r.input_cell.iter().map(|&c| input_cell[c]).collect(), r.summary)
+    } else {
+        (linear, input_cell, RepairSummary::default())
+    };
     let topo = Topology::new(&linear)?;
     let nodes = NodeSet::new(topo.simplex, opts.order, opts.spacing);
     let mut mesh = HighOrderMesh::elevate(&linear, &topo, &nodes, opts.spacing)?;
@@ -475,7 +497,8 @@ pub fn curve(
         system_dofs: solved.n_system,
         cells: mesh.n_cells(),
         reoriented_cells: reoriented,
-        removed_caps: n_input_cells - input_cell.len(),
+        removed_caps,
+        repair: repair_summary,
         input_cell,
         projected_nodes,
         max_projection_distance: max_dist,

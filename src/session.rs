@@ -105,10 +105,18 @@ impl Session {
         self.input.n_cells()
     }
 
-    /// For each cell of the current mesh, its index among the cells the host
-    /// gave (they differ only by the boundary caps removed).
+    /// Number of cells of the straight mesh that is curved: the input cells
+    /// less the boundary caps removed.
+    pub fn n_straight_cells(&self) -> usize {
+        self.linear.n_cells()
+    }
+
+    /// For each cell of the current mesh, an index among the cells the host
+    /// gave: the straight mesh lacks only the boundary caps removed; a curved
+    /// one may also have cells made by the repair, which map to the input cell
+    /// holding their centroid ([`crate::mesh::Repaired::input_cell`]).
     pub fn input_cells(&self) -> &[usize] {
-        &self.input_cell
+        self.report.as_ref().map_or(&self.input_cell, |r| &r.input_cell)
     }
 
     /// Rebuild the straight mesh for a new input mesh or settings; on error
@@ -157,6 +165,12 @@ impl Session {
     pub fn set_remove_caps(&mut self, remove: bool) -> Result<()> {
         let opts = CurveOptions { remove_caps: remove, ..self.opts.clone() };
         self.reset(self.input.clone(), opts)
+    }
+
+    /// Whether the linear mesh is repaired at each run (default true; see
+    /// [`CurveOptions::repair`]). Takes effect at the next run.
+    pub fn set_repair(&mut self, repair: bool) {
+        self.opts.repair = repair;
     }
 
     /// Static condensation of the cell-interior nodes (default on; see
@@ -303,7 +317,8 @@ impl Session {
         self.cell_quality = curved.cell_quality;
         let mut report = curved.report;
         report.removed_caps = self.input.n_cells() - self.linear.n_cells();
-        report.input_cell = self.input_cell.clone();
+        // The repair ran on `linear`: compose its map with that of the caps.
+        report.input_cell = report.input_cell.iter().map(|&c| self.input_cell[c]).collect();
         self.report = Some(report);
         Ok(())
     }

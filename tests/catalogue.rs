@@ -503,6 +503,7 @@ const CLI_CASES: &[(&str, &[&str], &str)] = &[
     ),
     ("unknown spacing", &["curve", "IN2", "--order", "2", "--spacing", "chebyshev"], "unknown spacing 'chebyshev'"),
     ("unknown --caps", &["curve", "IN2", "--order", "2", "--caps", "maybe"], "unknown --caps 'maybe'"),
+    ("unknown --repair", &["curve", "IN2", "--order", "2", "--repair", "maybe"], "unknown --repair 'maybe'"),
     ("unknown solver", &["curve", "IN2", "--order", "2", "--solver", "magic"], "magic"),
     ("unknown option", &["curve", "IN2", "--order", "2", "--frobnicate", "1"], "unknown option --frobnicate"),
     ("option without a value", &["curve", "IN2", "--output", "OUT", "--order"], "option --order needs a value"),

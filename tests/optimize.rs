@@ -123,7 +123,8 @@ fn optimisation_gives_the_same_mesh_for_any_number_of_threads() {
 #[test]
 fn sliding_boundary_nodes_on_the_surface_makes_valid_what_interior_moves_cannot() {
     let (mesh, projector) = gmsh_sphere_cavity("sphere_cavity_cap_gmsh.msh", 0.6);
-    let mut opts = CurveOptions { order: 2, ..Default::default() };
+    // The repair stage would remove this tet before curving: leave it.
+    let mut opts = CurveOptions { order: 2, repair: false, ..Default::default() };
     opts.optimize.slide = false;
     match run(&mesh, &projector, &opts) {
         Err(Error::InvalidElement(m)) => assert!(m.contains("after optimisation"), "{m}"),
@@ -135,7 +136,7 @@ fn sliding_boundary_nodes_on_the_surface_makes_valid_what_interior_moves_cannot(
     assert!(c.report.quality.certified_min_q3 > 0.0);
     // The boundary nodes where the projection put them: no adaptive
     // stepping, no optimisation (the mesh comes back with its invalid cell).
-    let mut plain = CurveOptions { order: 2, adaptive: Some(false), ..Default::default() };
+    let mut plain = CurveOptions { order: 2, adaptive: Some(false), repair: false, ..Default::default() };
     plain.optimize.enabled = false;
     let placed = run(&mesh, &projector, &plain).unwrap();
     assert!(placed.report.quality.n_certified_invalid > 0);

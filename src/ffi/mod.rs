@@ -161,6 +161,41 @@ pub struct HocOptimization {
     pub seconds: f64,
 }
 
+/// What the repair of the linear mesh did (hoc_mesh_repair_summary): boundary
+/// caps removed (hoc_mesh_set_remove_caps) and cells flipped away by the last
+/// run (hoc_mesh_set_repair).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default)]
+pub struct HocRepair {
+    /// Boundary caps removed.
+    pub removed_caps: usize,
+    /// Bad cells found by the last run: all vertices on one surface that
+    /// bulges into the domain, or a boundary facet bulging past half the
+    /// height of the opposite vertex, itself on the boundary.
+    pub bad_cells: usize,
+    /// Of them, with all vertices on one surface.
+    pub surface_cells: usize,
+    /// Of them, with a boundary facet bulging too far.
+    pub bulge_cells: usize,
+    /// 2-3 flips (3D).
+    pub flips_23: usize,
+    /// 3-2 flips (3D).
+    pub flips_32: usize,
+    /// Removals of an edge with four or more tets around it (3D).
+    pub edge_removals: usize,
+    /// Edge flips (2D).
+    pub flips_22: usize,
+    /// Bad surface cells no flip improved that were caps with faces more
+    /// than 45° apart (kept by the caps step): removed like caps.
+    pub surface_caps: usize,
+    /// Cells of the straight mesh (after the caps step) replaced by the repair.
+    pub cells_removed: usize,
+    /// Cells the repair made.
+    pub cells_added: usize,
+    /// Bad cells that no flip improved.
+    pub bad_cells_left: usize,
+}
+
 /// Projects `n_points` points (`dim` interleaved coordinates each, `dim` the
 /// mesh dimension) onto the geometric entity (`entity_dim`, `entity_tag`),
 /// writing the closest points into `projected`. Returns 0 on success. It is
@@ -655,6 +690,36 @@ pub unsafe extern "C" fn hoc_mesh_set_remove_caps(mesh: *mut HocMesh, remove: c_
     })
 }
 
+/// Whether each run repairs the linear mesh first (default 1). A cell whose
+/// vertices all lie on one surface that bulges into the domain (e.g. a tet
+/// inside the shell between a sphere cavity and its straight facets), or
+/// whose boundary facet bulges, once curved, past half the height of the
+/// opposite vertex (itself on the boundary), cannot stay valid with its
+/// vertices fixed. The run
+/// projects a few points of every tagged facet to measure the bulges, then
+/// removes such cells by local flips (2-3, 3-2, edge removal; edge flips in
+/// 2D) that keep the boundary facets and vertices: the curved mesh may have
+/// other cells than the straight one (see hoc_mesh_cell_count,
+/// hoc_mesh_get_input_cells and hoc_mesh_repair_summary). Takes effect at
+/// the next run.
+///
+/// @param[in,out] mesh the handle
+/// @param[in] enabled 1 on, 0 off
+/// @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_set_repair(mesh: *mut HocMesh, enabled: c_int) -> HocStatus {
+    guard(mesh, || {
+        let h = handle_mut(mesh)?;
+        let enabled = match enabled {
+            0 => false,
+            1 => true,
+            e => return Err(arg(format!("enabled must be 0 or 1, got {e}"))),
+        };
+        h.session.set_repair(enabled);
+        Ok(())
+    })
+}
+
 /// Static condensation of the cell-interior nodes (default 1). The nodes
 /// inside a cell (from p = 4 for tets, p = 3 for triangles) couple only with
 /// that cell's nodes; they are eliminated cell by cell before each linear
@@ -948,6 +1013,37 @@ pub unsafe extern "C" fn hoc_mesh_quality(mesh: *const HocMesh, out: *mut HocQua
     })
 }
 
+/// What the repair did: the boundary caps removed, and the flips of the last
+/// successful run (zero before a run, or when the run did not repair).
+///
+/// @param[in] mesh the handle
+/// @param[out] out the counts
+/// @return HOC_OK or HOC_ERROR_NULL_POINTER
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_repair_summary(mesh: *const HocMesh, out: *mut HocRepair) -> HocStatus {
+    guard(mesh, || {
+        let h = handle(mesh)?;
+        let out = out.as_mut().ok_or_else(|| null("out"))?;
+        let s = &h.session;
+        let r = s.report().map(|r| r.repair).unwrap_or_default();
+        *out = HocRepair {
+            removed_caps: s.n_input_cells() - s.n_straight_cells(),
+            bad_cells: r.bad_cells,
+            surface_cells: r.surface_cells,
+            bulge_cells: r.bulge_cells,
+            flips_23: r.flips_23,
+            flips_32: r.flips_32,
+            edge_removals: r.edge_removals,
+            flips_22: r.flips_22,
+            surface_caps: r.surface_caps,
+            cells_removed: r.cells_removed,
+            cells_added: r.cells_added,
+            bad_cells_left: r.bad_cells_left,
+        };
+        Ok(())
+    })
+}
+
 /// Per-cell quality Q`measure` (1, 2 or 3).
 ///
 /// @param[in] mesh the handle
@@ -1125,9 +1221,12 @@ pub unsafe extern "C" fn hoc_mesh_cell_count(
     })
 }
 
-/// For each cell of the current mesh, the index (0-based) of the input cell
-/// it is: the cells are the input cells in their order, less the boundary
-/// caps removed (hoc_mesh_set_remove_caps).
+/// For each cell of the current mesh, the index (0-based) of an input cell.
+/// The straight mesh is the input cells in their order, less the boundary
+/// caps removed (hoc_mesh_set_remove_caps). After a run that repaired cells
+/// (hoc_mesh_set_repair), the cells no flip touched come first, in that
+/// order, then the new cells, each mapped to the input cell that contains
+/// its centroid.
 ///
 /// @param[in] mesh the handle
 /// @param[in] n_cells must equal the count of hoc_mesh_cell_count

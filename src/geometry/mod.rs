@@ -24,3 +24,35 @@ pub mod shapes;
 
 pub use naca::Naca4;
 pub use shapes::{Shape, ShapeProjector};
+
+/// The bulge of each facet of `mesh` ([`crate::mesh::repair::bulge`]): its
+/// sample points are projected with one call to `projector` per entity.
+/// A projector error or a non-finite point is an error of the run.
+pub fn facet_bulges(mesh: &crate::mesh::LinearMesh, projector: &dyn Projector) -> crate::Result<Vec<f64>> {
+    use crate::mesh::repair::bulge;
+    let samples = bulge::bulge_samples(mesh);
+    let mut groups: std::collections::BTreeMap<(usize, i32), Vec<usize>> = Default::default();
+    for (i, &e) in samples.entities.iter().enumerate() {
+        groups.entry(e).or_default().push(i);
+    }
+    let mut projected = vec![[f64::NAN; 3]; samples.points.len()];
+    for ((edim, tag), ids) in groups {
+        let pts: Vec<[f64; 3]> = ids.iter().map(|&i| samples.points[i]).collect();
+        let mut out = vec![[f64::NAN; 3]; pts.len()];
+        projector.project(edim, tag, &pts, &mut out).map_err(|m| {
+            crate::Error::Projection(format!("projector failed on entity (dim {edim}, tag {tag}): {m}"))
+        })?;
+        for (&i, mut y) in ids.iter().zip(out) {
+            if mesh.dim == 2 {
+                y[2] = 0.0;
+            }
+            if !y.iter().all(|v| v.is_finite()) {
+                return Err(crate::Error::Projection(format!(
+                    "projector returned a non-finite point on entity (dim {edim}, tag {tag})"
+                )));
+            }
+            projected[i] = y;
+        }
+    }
+    Ok(bulge::facet_bulges(mesh, &samples, &projected))
+}

@@ -3,11 +3,13 @@
 
 pub mod linear;
 
-pub mod caps;
 pub mod high_order;
+pub mod repair;
 pub mod topology;
 
-pub use caps::remove_boundary_caps;
 pub use high_order::{HighOrderMesh, NodeConstraint};
 pub use linear::LinearMesh;
+/// Boundary caps, the first step of the repair (kept at its former path).
+pub use repair::caps;
+pub use repair::{remove_boundary_caps, repair, repair_with, RepairSummary, Repaired};
 pub use topology::{validate_and_orient, Topology};

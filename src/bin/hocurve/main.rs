@@ -46,8 +46,8 @@ USAGE:
                 [--formulation linear|ile] [--material linear]
                 [--young E] [--poisson NU] [--increments N]
                 [--spacing optimal|equispaced] [--solver auto|direct|iterative]
-                [--caps remove|keep] [--adaptive on|off] [--max-splits K]
-                [--condense on|off] [--optimize on|off]
+                [--caps remove|keep] [--repair on|off] [--adaptive on|off]
+                [--max-splits K] [--condense on|off] [--optimize on|off]
       Curve a linear gmsh (.msh 4.1) mesh. TAG is the elementary entity tag of
       the boundary facets (or 3D feature curves) that lie on SHAPE:
         sphere:cx,cy,cz,r        circle:cx,cy,r (2D)     circle3:cx,cy,cz,nx,ny,nz,r
@@ -55,7 +55,13 @@ USAGE:
         plane:px,py,pz,nx,ny,nz  line:px,py,pz,dx,dy,dz  naca4:DDDD,chord,x0,y0
       Boundary facets whose tag has no shape stay straight. 3D boundary caps
       (tets with two faces on one smooth surface, which cannot stay valid) are
-      removed unless --caps keep; the report says how many.
+      removed unless --caps keep; the report says how many. The repair (on
+      unless --repair off) then flips away the cells that cannot stay valid
+      with their vertices fixed: all vertices on one surface that bulges into
+      the domain, or a boundary facet bulging past half the height of the
+      opposite vertex, itself on the boundary (measured by projecting a few
+      points of each facet);
+      the report's repair section says what it found and did.
       Adaptive load stepping (default on, off for --formulation linear): an
       increment that inverts a cell (certified det J bounds) or whose Newton
       iteration fails is undone and halved, at most K times (--max-splits,
@@ -191,6 +197,7 @@ fn options_from(args: &Args, default_order: usize) -> Result<CurveOptions> {
         Some("keep") => false,
         Some(c) => return Err(Error::InvalidInput(format!("unknown --caps '{c}' (remove or keep)"))),
     };
+    o.repair = args.on_off("repair")?.unwrap_or(o.repair);
     if let Some(s) = args.get("solver") {
         o.solver = SolverChoice::parse(s)?;
     }
@@ -320,6 +327,7 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
             "spacing",
             "solver",
             "caps",
+            "repair",
             "adaptive",
             "max-splits",
             "condense",
@@ -472,6 +480,24 @@ fn quality_json(q: &MeshQuality) -> String {
     )
 }
 
+fn repair_json(r: &hocurve::mesh::RepairSummary) -> String {
+    format!(
+        "{{\"bad_cells\": {}, \"surface_cells\": {}, \"bulge_cells\": {}, \"flips_23\": {}, \"flips_32\": {}, \
+         \"edge_removals\": {}, \"flips_22\": {}, \"surface_caps\": {}, \"cells_removed\": {}, \"cells_added\": {}, \"bad_cells_left\": {}}}",
+        r.bad_cells,
+        r.surface_cells,
+        r.bulge_cells,
+        r.flips_23,
+        r.flips_32,
+        r.edge_removals,
+        r.flips_22,
+        r.surface_caps,
+        r.cells_removed,
+        r.cells_added,
+        r.bad_cells_left
+    )
+}
+
 fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> String {
     let r = &c.report;
     let t = &r.timings;
@@ -479,7 +505,7 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
         "{{\n  \"order\": {},\n  \"formulation\": \"{}\",\n  \"material\": \"{}\",\n  \"young\": {},\n  \
          \"poisson\": {},\n  \"increments\": {},\n  \"adaptive\": {},\n  \"max_splits\": {},\n  \
          \"increments_taken\": {},\n  \"load_fractions\": {:?},\n  \"step_backs\": [{}],\n  \"spacing\": \"{}\",\n  \"nodes\": {},\n  \"dofs\": {},\n  \"system_dofs\": {},\n  \
-         \"cells\": {},\n  \"removed_caps\": {},\n  \"projected_nodes\": {},\n  \"max_projection_distance\": {},\n{},\n  \
+         \"cells\": {},\n  \"removed_caps\": {},\n  \"repair\": {},\n  \"projected_nodes\": {},\n  \"max_projection_distance\": {},\n{},\n  \
          \"newton_history\": {:?},\n  \"linear_solver\": \"{}\",\n  \"solver_iterations\": {:?},\n  \
          \"seconds\": {{\"total\": {}, \"elevate\": {}, \"project\": {}, \"assembly\": {}, \"setup\": {}, \"solve\": {}, \"quality\": {}, \"check\": {}, \"optimize\": {}}},\n  \
          \"elastic_stop\": {},\n  \"optimization\": {},\n  \"output\": {}\n}}",
@@ -510,6 +536,7 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
         r.system_dofs,
         r.cells,
         r.removed_caps,
+        repair_json(&r.repair),
         r.projected_nodes,
         num(r.max_projection_distance),
         quality_json(&r.quality),

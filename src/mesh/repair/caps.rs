@@ -20,7 +20,7 @@
 
 use std::collections::{HashMap, HashSet};
 
-use super::LinearMesh;
+use crate::mesh::LinearMesh;
 
 /// Largest angle between the outward normals of a cap's two boundary faces:
 /// beyond it the shared edge is a crease of the surface and is kept.
@@ -58,84 +58,90 @@ fn outward_normal(x: &[f64], a: usize, b: usize, c: usize, opposite: usize) -> [
 pub fn remove_boundary_caps(mesh: &LinearMesh) -> (LinearMesh, Vec<usize>) {
     let mut out = mesh.clone();
     let mut kept: Vec<usize> = (0..mesh.cells.len() / (mesh.dim + 1)).collect();
-    if mesh.dim != 3 {
-        return (out, kept);
-    }
     let cos_max = CAP_MAX_NORMAL_ANGLE_DEG.to_radians().cos();
+    while let Some((next, k)) = sweep(&out, |_, cos| cos >= cos_max) {
+        kept = k.iter().map(|&i| kept[i]).collect();
+        out = next;
+    }
+    (out, kept)
+}
+
+/// One sweep of cap removal over a 3D mesh: every cap (module docs) that
+/// `accept(cell, cos)` takes, with cos the cosine of the angle between the
+/// outward normals of its two boundary faces, is removed, except those that
+/// share a vertex with one removed before in the sweep (their flips could
+/// conflict). None when nothing is removed (always in 2D); else the new mesh
+/// and, for each of its cells, its index in `mesh` (cells keep their order).
+pub fn sweep(mesh: &LinearMesh, accept: impl Fn(usize, f64) -> bool) -> Option<(LinearMesh, Vec<usize>)> {
+    if mesh.dim != 3 {
+        return None;
+    }
+    let mut out = mesh.clone();
     let features: HashSet<[usize; 2]> =
         mesh.feature_edges.chunks_exact(2).map(|e| [e[0].min(e[1]), e[0].max(e[1])]).collect();
-    loop {
-        let faces: HashMap<[usize; 3], usize> =
-            out.facets.chunks_exact(3).enumerate().map(|(i, f)| (sorted3(f[0], f[1], f[2]), i)).collect();
-        let boundary_edges: HashSet<[usize; 2]> = out
-            .facets
-            .chunks_exact(3)
-            .flat_map(|f| [[f[0], f[1]], [f[1], f[2]], [f[0], f[2]]])
-            .chain(features.iter().copied())
-            .map(|[a, b]| [a.min(b), a.max(b)])
+    let faces: HashMap<[usize; 3], usize> =
+        out.facets.chunks_exact(3).enumerate().map(|(i, f)| (sorted3(f[0], f[1], f[2]), i)).collect();
+    let boundary_edges: HashSet<[usize; 2]> = out
+        .facets
+        .chunks_exact(3)
+        .flat_map(|f| [[f[0], f[1]], [f[1], f[2]], [f[0], f[2]]])
+        .chain(features.iter().copied())
+        .map(|[a, b]| [a.min(b), a.max(b)])
+        .collect();
+    let mut remove_cell = vec![false; out.n_cells()];
+    let mut remove_facet = vec![false; out.facet_tags.len()];
+    let mut touched = HashSet::new();
+    let (mut new_facets, mut new_tags) = (Vec::new(), Vec::new());
+    for (ci, cell) in out.cells.chunks_exact(4).enumerate() {
+        // Boundary faces as (opposite local vertex, facet index).
+        let on: Vec<(usize, usize)> = (0..4)
+            .filter_map(|k| {
+                let f: Vec<usize> = (0..4).filter(|&j| j != k).map(|j| cell[j]).collect();
+                faces.get(&sorted3(f[0], f[1], f[2])).map(|&i| (k, i))
+            })
             .collect();
-        let mut remove_cell = vec![false; kept.len()];
-        let mut remove_facet = vec![false; out.facet_tags.len()];
-        // Caps removed in one sweep share no vertex, so their flips never conflict.
-        let mut touched = HashSet::new();
-        let (mut new_facets, mut new_tags) = (Vec::new(), Vec::new());
-        for (ci, cell) in out.cells.chunks_exact(4).enumerate() {
-            // Boundary faces as (opposite local vertex, facet index).
-            let on: Vec<(usize, usize)> = (0..4)
-                .filter_map(|k| {
-                    let f: Vec<usize> = (0..4).filter(|&j| j != k).map(|j| cell[j]).collect();
-                    faces.get(&sorted3(f[0], f[1], f[2])).map(|&i| (k, i))
-                })
-                .collect();
-            let [(kc, fc), (kd, fd)] = on[..] else { continue };
-            if out.facet_tags[fc] != out.facet_tags[fd] || cell.iter().any(|v| touched.contains(v)) {
-                continue;
-            }
-            let (c, d) = (cell[kc], cell[kd]);
-            let ab: Vec<usize> = cell.iter().copied().filter(|&v| v != c && v != d).collect();
-            let (a, b) = (ab[0], ab[1]);
-            if boundary_edges.contains(&[c.min(d), c.max(d)]) || features.contains(&[a.min(b), a.max(b)]) {
-                continue;
-            }
-            // Face opposite c is (a, b, d); opposite d is (a, b, c).
-            let n1 = outward_normal(&out.coords, a, b, d, c);
-            let n2 = outward_normal(&out.coords, a, b, c, d);
-            if dot(n1, n2) < cos_max {
-                continue;
-            }
-            remove_cell[ci] = true;
-            remove_facet[fc] = true;
-            remove_facet[fd] = true;
-            touched.extend(cell.iter().copied());
-            for o in [a, b] {
-                new_facets.extend_from_slice(&[o, c, d]);
-                new_tags.push(out.facet_tags[fc]);
-            }
+        let [(kc, fc), (kd, fd)] = on[..] else { continue };
+        if out.facet_tags[fc] != out.facet_tags[fd] || cell.iter().any(|v| touched.contains(v)) {
+            continue;
         }
-        if !remove_cell.contains(&true) {
-            return (out, kept);
+        let (c, d) = (cell[kc], cell[kd]);
+        let ab: Vec<usize> = cell.iter().copied().filter(|&v| v != c && v != d).collect();
+        let (a, b) = (ab[0], ab[1]);
+        if boundary_edges.contains(&[c.min(d), c.max(d)]) || features.contains(&[a.min(b), a.max(b)]) {
+            continue;
         }
-        let keep = |flags: &[bool], i: usize| !flags[i];
-        out.cells = out
-            .cells
-            .chunks_exact(4)
-            .enumerate()
-            .filter(|&(i, _)| keep(&remove_cell, i))
-            .flat_map(|(_, c)| c.to_vec())
-            .collect();
-        kept = kept.iter().enumerate().filter(|&(i, _)| keep(&remove_cell, i)).map(|(_, &k)| k).collect();
-        let (mut facets, mut tags) = (Vec::new(), Vec::new());
-        for (i, (f, &t)) in out.facets.chunks_exact(3).zip(&out.facet_tags).enumerate() {
-            if keep(&remove_facet, i) {
-                facets.extend_from_slice(f);
-                tags.push(t);
-            }
+        // Face opposite c is (a, b, d); opposite d is (a, b, c).
+        let n1 = outward_normal(&out.coords, a, b, d, c);
+        let n2 = outward_normal(&out.coords, a, b, c, d);
+        if !accept(ci, dot(n1, n2)) {
+            continue;
         }
-        facets.extend(new_facets);
-        tags.extend(new_tags);
-        out.facets = facets;
-        out.facet_tags = tags;
+        remove_cell[ci] = true;
+        remove_facet[fc] = true;
+        remove_facet[fd] = true;
+        touched.extend(cell.iter().copied());
+        for o in [a, b] {
+            new_facets.extend_from_slice(&[o, c, d]);
+            new_tags.push(out.facet_tags[fc]);
+        }
     }
+    if !remove_cell.contains(&true) {
+        return None;
+    }
+    let kept: Vec<usize> = (0..remove_cell.len()).filter(|&i| !remove_cell[i]).collect();
+    out.cells = kept.iter().flat_map(|&i| mesh.cells[4 * i..4 * i + 4].to_vec()).collect();
+    let (mut facets, mut tags) = (Vec::new(), Vec::new());
+    for (i, (f, &t)) in mesh.facets.chunks_exact(3).zip(&mesh.facet_tags).enumerate() {
+        if !remove_facet[i] {
+            facets.extend_from_slice(f);
+            tags.push(t);
+        }
+    }
+    facets.extend(new_facets);
+    tags.extend(new_tags);
+    out.facets = facets;
+    out.facet_tags = tags;
+    Some((out, kept))
 }
 
 #[cfg(test)]

@@ -1,0 +1,50 @@
+//! Small geometric helpers of the repair stage (3-vectors, z = 0 in 2D).
+
+/// A facet as its sorted vertices (`usize::MAX` in the third slot in 2D).
+pub type FacetKey = [usize; 3];
+
+/// Key of facet `f` (2 or 3 vertices).
+pub fn facet_key(f: &[usize]) -> FacetKey {
+    let mut k = [usize::MAX; 3];
+    k[..f.len()].copy_from_slice(f);
+    k[..f.len()].sort_unstable();
+    k
+}
+
+pub fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+pub fn cross(u: [f64; 3], v: [f64; 3]) -> [f64; 3] {
+    [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+}
+
+pub fn dot(u: [f64; 3], v: [f64; 3]) -> f64 {
+    u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+}
+
+pub fn norm(u: [f64; 3]) -> f64 {
+    dot(u, u).sqrt()
+}
+
+/// dim! times the signed measure of the simplex `x[..=dim]`.
+pub fn orient(dim: usize, x: &[[f64; 3]]) -> f64 {
+    let (u, v) = (sub(x[1], x[0]), sub(x[2], x[0]));
+    if dim == 2 {
+        u[0] * v[1] - u[1] * v[0]
+    } else {
+        dot(cross(u, v), sub(x[3], x[0]))
+    }
+}
+
+/// Barycentric coordinates of `p` in the simplex `x[..=dim]` (any orientation).
+pub fn barycentric(dim: usize, x: &[[f64; 3]], p: [f64; 3]) -> [f64; 4] {
+    let total = orient(dim, x);
+    let mut l = [0.0; 4];
+    for (k, lk) in l.iter_mut().enumerate().take(dim + 1) {
+        let mut y = [x[0], x[1], x[2], if dim == 3 { x[3] } else { [0.0; 3] }];
+        y[k] = p;
+        *lk = orient(dim, &y) / total;
+    }
+    l
+}

@@ -1,0 +1,259 @@
+//! Topological repair of the linear mesh before curving: cells that cannot
+//! stay valid once curved with their vertices fixed are flipped away.
+//!
+//! Two steps, each optional ([`crate::curve::CurveOptions`]):
+//!
+//! 1. [`caps`]: boundary caps (tets with two faces on one smooth surface,
+//!    less than 45° apart) are removed, which flips their surface edge:
+//!    purely topological, no geometry needed.
+//! 2. [`repair_with`]: given how far the curved boundary bulges over each boundary
+//!    facet ([`bulge`], measured by projecting a few points of each facet),
+//!    the *bad* cells ([`detect`]: all vertices on one surface that bulges
+//!    into the domain, or a boundary facet bulging past half the height of
+//!    the opposite vertex, itself on the boundary) are removed by local flips ([`flips`]: 2-3, 3-2
+//!    and edge removal in 3D, edge flips in 2D). For each bad cell, the valid
+//!    flip that removes it with the best smallest quality of its new cells
+//!    (a quality that counts the bulge, [`detect`]) is applied if that beats
+//!    the smallest quality of the cells it replaces; passes repeat until no
+//!    cell is bad or no flip improves (at most [`MAX_PASSES`]). A bad cell no
+//!    flip improves is left as it is. Boundary facets, vertices and
+//!    orientations are kept; every accepted flip strictly raises the sorted
+//!    vector of qualities, so no configuration comes back. Then a bad
+//!    surface cell that no flip improved and that is a cap whose faces are
+//!    more than 45° apart (so step 1 kept it; coarse meshes of a sphere make
+//!    them at 50–90°) is removed like a cap: the geometry has shown that it
+//!    lies where curving removes the domain. The new facets are measured
+//!    again and another round of flips runs (at most [`MAX_ROUNDS`]).
+//!
+//! The cells of the result are the cells of the input that no flip touched,
+//! in their order, then the new cells. Each maps to an input cell (see
+//! [`Repaired::input_cell`]).
+
+pub mod bulge;
+pub mod caps;
+pub mod detect;
+pub mod flips;
+mod geom;
+#[cfg(test)]
+mod tests;
+
+use crate::mesh::LinearMesh;
+pub use bulge::{bulge_samples, facet_bulges, BulgeSamples};
+pub use caps::remove_boundary_caps;
+pub use detect::{bad_cells, Assessment, Criteria, BULGE_FRACTION};
+pub use flips::FlipKind;
+use flips::Work;
+use geom::barycentric;
+
+/// Passes over the bad cells at most, in one round of flips.
+pub const MAX_PASSES: usize = 20;
+
+/// Rounds of flips at most ([`repair_with`]).
+pub const MAX_ROUNDS: usize = 4;
+
+/// What [`repair`] did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RepairSummary {
+    /// Bad cells of the mesh given ([`detect`]).
+    pub bad_cells: usize,
+    /// Of them, cells with all vertices on one surface bulging into the domain.
+    pub surface_cells: usize,
+    /// Of them, cells with a boundary facet bulging past [`BULGE_FRACTION`] of their height.
+    pub bulge_cells: usize,
+    /// 2-3 flips (3D).
+    pub flips_23: usize,
+    /// 3-2 flips (3D).
+    pub flips_32: usize,
+    /// Removals of an edge with four or more tets around it (3D).
+    pub edge_removals: usize,
+    /// Edge flips (2D).
+    pub flips_22: usize,
+    /// Bad surface cells that no flip improved and that were boundary caps
+    /// whose faces meet at more than [`caps::CAP_MAX_NORMAL_ANGLE_DEG`] (so
+    /// the caps step kept them): removed like caps, their surface edge
+    /// flipped to their chord ([`repair_with`]).
+    pub surface_caps: usize,
+    /// Cells of the mesh given that are not in the result.
+    pub cells_removed: usize,
+    /// Cells of the result that are not in the mesh given.
+    pub cells_added: usize,
+    /// Bad cells in the result: no flip improved them (left to the curving).
+    pub bad_cells_left: usize,
+}
+
+impl RepairSummary {
+    /// All flips.
+    pub fn flips(&self) -> usize {
+        self.flips_23 + self.flips_32 + self.edge_removals + self.flips_22
+    }
+}
+
+/// The repaired mesh.
+#[derive(Debug, Clone)]
+pub struct Repaired {
+    pub mesh: LinearMesh,
+    /// For each cell of `mesh`, a cell of the mesh given: itself for a cell no
+    /// flip touched; for a new cell, the cell of the mesh given that contains
+    /// its centroid (flips keep the region the cells cover, so there is one;
+    /// on a tie, the one in which the centroid's smallest barycentric
+    /// coordinate is largest).
+    pub input_cell: Vec<usize>,
+    pub summary: RepairSummary,
+}
+
+/// Flip the bad cells of `mesh` away: one round of [`repair_with`], with
+/// the bulges known. `mesh` is validated and positively oriented (see
+/// [`crate::mesh::validate_and_orient`]); `bulge` has one value per facet
+/// ([`facet_bulges`]). Facets are unchanged; the cells no flip touched come
+/// first, in their order, then the new cells.
+pub fn repair(mesh: &LinearMesh, bulge: &[f64]) -> Repaired {
+    let origin = (0..mesh.n_cells()).map(|c| vec![c]).collect();
+    flip_round(mesh, bulge, origin, mesh).0
+}
+
+/// The repair (module docs): rounds of flips ([`repair`]); after each, the
+/// bad surface cells left that are boundary caps, whatever the angle of their
+/// faces, are removed ([`caps::sweep`]) and the bulges measured again by
+/// `measure` (one value per facet of the mesh it is given, see
+/// [`crate::geometry::facet_bulges`]) for the next round, at most
+/// [`MAX_ROUNDS`]. Cells no step touched keep their relative order.
+pub fn repair_with<E>(
+    mesh: &LinearMesh,
+    mut measure: impl FnMut(&LinearMesh) -> Result<Vec<f64>, E>,
+) -> Result<Repaired, E> {
+    let n = mesh.n_cells();
+    let mut cur = mesh.clone();
+    // Per cell of `cur`: the cells of `mesh` it overlaps, and whether it is one of them unchanged.
+    let mut origin: Vec<Vec<usize>> = (0..n).map(|c| vec![c]).collect();
+    let mut same: Vec<Option<usize>> = (0..n).map(Some).collect();
+    let mut summary = RepairSummary::default();
+    for round in 0..MAX_ROUNDS {
+        let bulge = measure(&cur)?;
+        let (r, o) = flip_round(&cur, &bulge, origin, mesh);
+        let s = r.summary;
+        if round == 0 {
+            summary.bad_cells = s.bad_cells;
+            summary.surface_cells = s.surface_cells;
+            summary.bulge_cells = s.bulge_cells;
+        }
+        summary.flips_23 += s.flips_23;
+        summary.flips_32 += s.flips_32;
+        summary.edge_removals += s.edge_removals;
+        summary.flips_22 += s.flips_22;
+        summary.bad_cells_left = s.bad_cells_left;
+        let n_kept = r.mesh.n_cells() - s.cells_added;
+        same = (0..r.mesh.n_cells()).map(|i| if i < n_kept { same[r.input_cell[i]] } else { None }).collect();
+        origin = o;
+        cur = r.mesh;
+        if s.bad_cells_left == 0 || round + 1 == MAX_ROUNDS {
+            break;
+        }
+        let surface: std::collections::HashSet<usize> =
+            bad_cells(&cur, &bulge).into_iter().filter(|(_, a)| a.surface).map(|(c, _)| c).collect();
+        let Some((next, kept)) = caps::sweep(&cur, |c, _| surface.contains(&c)) else { break };
+        summary.surface_caps += cur.n_cells() - next.n_cells();
+        origin = kept.iter().map(|&c| std::mem::take(&mut origin[c])).collect();
+        same = kept.iter().map(|&c| same[c]).collect();
+        cur = next;
+    }
+    let untouched = same.iter().flatten().count();
+    summary.cells_removed = n - untouched;
+    summary.cells_added = cur.n_cells() - untouched;
+    let d = mesh.dim;
+    let input_cell = (0..cur.n_cells())
+        .map(|c| same[c].unwrap_or_else(|| locate(mesh, &cur.cells[c * (d + 1)..(c + 1) * (d + 1)], &origin[c])))
+        .collect();
+    Ok(Repaired { mesh: cur, input_cell, summary })
+}
+
+/// One round of flips on `mesh`, whose cell c overlaps the cells `origin[c]`
+/// of `base`: the repaired mesh, and the origins of its cells. Its
+/// `input_cell` gives an untouched cell's index in `mesh` and a new cell's in
+/// `base` (the same mesh for [`repair`]).
+fn flip_round(
+    mesh: &LinearMesh,
+    bulge: &[f64],
+    origin: Vec<Vec<usize>>,
+    base: &LinearMesh,
+) -> (Repaired, Vec<Vec<usize>>) {
+    let n = mesh.n_cells();
+    let mut summary = RepairSummary::default();
+    if !(mesh.dim == 2 || mesh.dim == 3) || bulge.len() != mesh.n_facets() {
+        let input_cell = (0..n).collect();
+        return (Repaired { mesh: mesh.clone(), input_cell, summary }, origin);
+    }
+    let crit = Criteria::new(mesh, bulge);
+    let mut w = Work::new(mesh, &crit, origin);
+    for a in w.assessment.iter().filter(|a| a.is_bad()) {
+        summary.bad_cells += 1;
+        summary.surface_cells += a.surface as usize;
+        summary.bulge_cells += a.bulge as usize;
+    }
+    for _ in 0..MAX_PASSES {
+        if summary.bad_cells == 0 {
+            break;
+        }
+        let bad: Vec<usize> = (0..w.cells.len()).filter(|&c| w.alive[c] && w.assessment[c].is_bad()).collect();
+        let mut changed = false;
+        for c in bad {
+            if !w.alive[c] || !w.assessment[c].is_bad() {
+                continue;
+            }
+            let best = w
+                .candidates(c)
+                .into_iter()
+                .filter(|f| {
+                    let old = f.remove.iter().map(|&r| w.assessment[r].quality).fold(f64::INFINITY, f64::min);
+                    f.min_quality > old + 1e-12
+                })
+                .max_by(|x, y| x.min_quality.total_cmp(&y.min_quality));
+            let Some(f) = best else { continue };
+            match f.kind {
+                FlipKind::TwoThree => summary.flips_23 += 1,
+                FlipKind::ThreeTwo => summary.flips_32 += 1,
+                FlipKind::EdgeRemoval => summary.edge_removals += 1,
+                FlipKind::TwoTwo => summary.flips_22 += 1,
+            }
+            w.apply(&f);
+            changed = true;
+        }
+        if !changed {
+            break;
+        }
+    }
+    let d = mesh.dim;
+    let mut out = mesh.clone();
+    out.cells.clear();
+    let (mut input_cell, mut origin) = (Vec::new(), Vec::new());
+    let live: Vec<usize> = (0..w.cells.len()).filter(|&c| w.alive[c]).collect();
+    for &c in &live {
+        out.cells.extend_from_slice(&w.cells[c][..=d]);
+        if c < n {
+            input_cell.push(c);
+        } else {
+            input_cell.push(locate(base, &w.cells[c][..=d], &w.origin[c]));
+            summary.cells_added += 1;
+        }
+        summary.bad_cells_left += w.assessment[c].is_bad() as usize;
+        origin.push(std::mem::take(&mut w.origin[c]));
+    }
+    summary.cells_removed = (0..n).filter(|&c| !w.alive[c]).count();
+    (Repaired { mesh: out, input_cell, summary }, origin)
+}
+
+/// The cell among `candidates` (cells of `mesh`) that contains the centroid of `cell`.
+fn locate(mesh: &LinearMesh, cell: &[usize], candidates: &[usize]) -> usize {
+    let d = mesh.dim;
+    let mut g = [0.0; 3];
+    for &v in cell {
+        let x = mesh.vertex(v);
+        for k in 0..3 {
+            g[k] += x[k] / (d + 1) as f64;
+        }
+    }
+    let score = |c: usize| {
+        let x: Vec<[f64; 3]> = mesh.cells[c * (d + 1)..(c + 1) * (d + 1)].iter().map(|&v| mesh.vertex(v)).collect();
+        barycentric(d, &x, g)[..=d].iter().copied().fold(f64::INFINITY, f64::min)
+    };
+    *candidates.iter().max_by(|&&a, &&b| score(a).total_cmp(&score(b))).expect("a new cell replaces some cells")
+}

@@ -1,0 +1,188 @@
+//! The repair stage end to end, on two small pieces of gmsh sphere cavities
+//! (OCC, box [-2, 2]^3 less a sphere, cut out around the cells that made the
+//! whole meshes fail; the cut faces are untagged, so they stay straight):
+//!
+//! * `sphere_cavity_cap.msh`: the 7 tets around cell 41 of the cavity of
+//!   radius 0.70 (CharacteristicLengthMax 0.5, Min 0.1), a tet with all four
+//!   vertices on the sphere whose two sphere faces meet at 54°, so the caps
+//!   step keeps it; its bulge is 93 % of its height over one face. Curving
+//!   fails at p = 2..4 ("cell 41 is inverted"); an edge removal fixes it.
+//! * `sphere_cavity_shell.msh`: the 15 tets around cells 4 and 996 of the
+//!   cavity of radius 1.10 (CharacteristicLengthMax 0.8): two adjacent tets
+//!   with all vertices on the sphere, one of them a cap at 86°, the other
+//!   with one sphere face bulging twice its height over it. No single flip is
+//!   valid; both go as surface caps, one round after the other.
+
+use std::path::Path;
+
+use hocurve::curve::{curve, CurveOptions};
+use hocurve::geometry::{facet_bulges, Shape, ShapeProjector};
+use hocurve::mesh::repair::{bad_cells, repair_with};
+use hocurve::mesh::{validate_and_orient, LinearMesh};
+use hocurve::session::Session;
+use hocurve::Error;
+
+fn load(name: &str, radius: f64) -> (LinearMesh, ShapeProjector) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(name);
+    let msh = hocurve::io::gmsh::read_msh(&path).unwrap();
+    let mesh = hocurve::io::gmsh::to_linear_mesh(&msh).unwrap();
+    let mut projector = ShapeProjector::new();
+    projector.insert(7, Shape::parse(&format!("sphere:0,0,0,{radius}")).unwrap());
+    (validate_and_orient(&mesh).unwrap().0, projector)
+}
+
+fn on_sphere(m: &LinearMesh, v: usize, radius: f64) -> bool {
+    let x = m.vertex(v);
+    ((x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt() - radius).abs() < 1e-9
+}
+
+/// Height of vertex `o` over the plane of (a, b, c).
+fn height(m: &LinearMesh, [a, b, c]: [usize; 3], o: usize) -> f64 {
+    let [xa, xb, xc, xo] = [a, b, c, o].map(|v| m.vertex(v));
+    let s = |p: [f64; 3], q: [f64; 3]| [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+    let (u, w, r) = (s(xb, xa), s(xc, xa), s(xo, xa));
+    let n = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
+    (n[0] * r[0] + n[1] * r[1] + n[2] * r[2]).abs() / (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt()
+}
+
+/// With the repair, the defaults; without it, the elastic stage alone (the
+/// optimisation stage off), to show what the repair itself fixes.
+fn opts(repair: bool) -> CurveOptions {
+    let mut o = CurveOptions { order: 4, repair, ..Default::default() };
+    o.optimize.enabled = repair;
+    o
+}
+
+#[test]
+fn a_mesh_that_fails_to_curve_curves_after_an_edge_removal() {
+    let (mesh, projector) = load("sphere_cavity_cap.msh", 0.70);
+    match curve(&mesh, &projector, &opts(false), &mut |_| true) {
+        Err(Error::InvalidElement(m)) => assert!(m.contains("after halving the step 6 times"), "{m}"),
+        other => panic!("expected the run to fail without repair, got {:?}", other.map(|c| c.report.quality)),
+    }
+    let c = curve(&mesh, &projector, &opts(true), &mut |_| true).unwrap();
+    let r = &c.report;
+    assert_eq!((r.repair.bad_cells, r.repair.surface_cells, r.repair.edge_removals), (1, 1, 1), "{:?}", r.repair);
+    assert_eq!((r.repair.cells_removed, r.repair.cells_added, r.repair.bad_cells_left), (4, 4, 0));
+    assert_eq!((r.cells, r.input_cell.len()), (7, 7));
+    assert_eq!((r.quality.n_invalid, r.quality.n_certified_invalid), (0, 0));
+    // Untouched cells come first and map to themselves (vertex nodes come
+    // first in a cell and are the input vertices).
+    let npc = c.mesh.nodes_per_cell();
+    for (i, &src) in r.input_cell.iter().enumerate() {
+        let vertices = &c.mesh.cells[i * npc..i * npc + 4];
+        if i < 3 {
+            assert_eq!(vertices, &mesh.cells[4 * src..4 * src + 4]);
+        }
+        assert!(src < mesh.n_cells());
+    }
+}
+
+#[test]
+fn cells_inside_the_shell_of_a_sphere_cavity_are_found_and_removed() {
+    let radius = 1.10;
+    let (mesh, projector) = load("sphere_cavity_shell.msh", radius);
+    let bulge = facet_bulges(&mesh, &projector).unwrap();
+    let bad = bad_cells(&mesh, &bulge);
+    assert_eq!(bad.iter().map(|b| b.0).collect::<Vec<_>>(), vec![0, 1], "{bad:?}");
+    // Both have all four vertices on the sphere.
+    for &(c, a) in &bad {
+        assert!(a.surface && mesh.cells[4 * c..4 * c + 4].iter().all(|&v| on_sphere(&mesh, v, radius)));
+    }
+    // Cell 1 (996 of the whole mesh) has a sphere facet bulging more than its height over it.
+    let facets: Vec<[usize; 3]> = mesh.facets.chunks(3).map(|f| [f[0], f[1], f[2]]).collect();
+    let cell = &mesh.cells[4..8];
+    let (k, f) = facets.iter().enumerate().find(|(_, f)| f.iter().all(|v| cell.contains(v))).unwrap();
+    let apex = *cell.iter().find(|v| !f.contains(v)).unwrap();
+    assert!(bulge[k] > height(&mesh, *f, apex), "bulge {} height {}", bulge[k], height(&mesh, *f, apex));
+
+    let r = repair_with(&mesh, |m| facet_bulges(m, &projector)).unwrap();
+    let s = r.summary;
+    assert_eq!((s.surface_caps, s.cells_removed, s.cells_added, s.bad_cells_left), (2, 2, 0, 0), "{s:?}");
+    assert_eq!(r.input_cell, (2..15).collect::<Vec<_>>());
+    assert!(bad_cells(&r.mesh, &facet_bulges(&r.mesh, &projector).unwrap()).is_empty());
+    // The flipped surface edges: every sphere facet still has its vertices on the sphere.
+    assert!(r.mesh.facets.iter().all(|&v| on_sphere(&r.mesh, v, radius)));
+
+    // Curving fails without the repair and succeeds with it.
+    assert!(matches!(curve(&mesh, &projector, &opts(false), &mut |_| true), Err(Error::InvalidElement(_))));
+    let c = curve(&mesh, &projector, &opts(true), &mut |_| true).unwrap();
+    assert_eq!((c.report.cells, c.report.quality.n_certified_invalid), (13, 0));
+    assert_eq!(c.report.repair, s);
+}
+
+#[test]
+fn the_session_repairs_at_each_run_and_maps_the_new_cells() {
+    let (mesh, projector) = load("sphere_cavity_cap.msh", 0.70);
+    let mut s = Session::try_new(mesh.clone()).unwrap();
+    s.set_order(3, hocurve::reference::NodeSpacing::Optimal).unwrap();
+    s.set_projector(Some(Box::new(projector)));
+    s.set_repair(false);
+    s.set_optimize(false);
+    assert!(s.run(10).is_err());
+    s.set_repair(true);
+    s.set_optimize(true);
+    s.run(10).unwrap();
+    let report = s.report().unwrap();
+    assert_eq!(report.repair.edge_removals, 1);
+    assert_eq!(s.input_cells().len(), s.mesh().n_cells());
+    assert_eq!(&s.input_cells()[..3], &report.input_cell[..3]);
+    assert!(s.input_cells().iter().all(|&c| c < mesh.n_cells()));
+    assert_eq!(s.quality().n_certified_invalid, 0);
+}
+
+/// Projects onto the sphere of radius 0.70 about the origin (3D points).
+unsafe extern "C" fn sphere_070(
+    _: *mut std::ffi::c_void,
+    _: std::ffi::c_int,
+    _: std::ffi::c_int,
+    n: usize,
+    points: *const f64,
+    out: *mut f64,
+) -> std::ffi::c_int {
+    let (p, o) = (std::slice::from_raw_parts(points, 3 * n), std::slice::from_raw_parts_mut(out, 3 * n));
+    for (x, y) in p.chunks(3).zip(o.chunks_mut(3)) {
+        let l = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
+        for k in 0..3 {
+            y[k] = 0.70 * x[k] / l;
+        }
+    }
+    0
+}
+
+#[test]
+fn the_c_abi_turns_the_repair_on_and_off_and_reports_it() {
+    use hocurve::ffi::*;
+    let (mesh, _) = load("sphere_cavity_cap.msh", 0.70);
+    let cells: Vec<i64> = mesh.cells.iter().map(|&v| v as i64).collect();
+    let facets: Vec<i64> = mesh.facets.iter().map(|&v| v as i64).collect();
+    unsafe {
+        let mut m = std::ptr::null_mut();
+        assert_eq!(hoc_mesh_create(3, mesh.n_vertices(), mesh.coords.as_ptr(), 7, cells.as_ptr(), &mut m), HOC_OK);
+        assert_eq!(hoc_mesh_set_boundary(m, mesh.n_facets(), facets.as_ptr(), mesh.facet_tags.as_ptr()), HOC_OK);
+        assert_eq!(hoc_mesh_set_projector(m, Some(sphere_070), std::ptr::null_mut()), HOC_OK);
+        assert_eq!(hoc_mesh_set_order(m, 2, HOC_SPACING_OPTIMAL), HOC_OK);
+        assert_eq!(hoc_mesh_set_repair(m, 2), HOC_ERROR_INVALID_ARGUMENT);
+        assert_eq!(hoc_mesh_set_repair(m, 0), HOC_OK);
+        assert_eq!(hoc_mesh_run_increments(m, 10), HOC_ERROR_INVALID_ELEMENT);
+        let mut r = HocRepair::default();
+        assert_eq!(hoc_mesh_repair_summary(m, &mut r), HOC_OK);
+        assert_eq!((r.removed_caps, r.bad_cells, r.edge_removals), (0, 0, 0), "nothing before a successful run");
+        assert_eq!(hoc_mesh_repair_summary(m, std::ptr::null_mut()), HOC_ERROR_NULL_POINTER);
+        assert_eq!(hoc_mesh_set_repair(m, 1), HOC_OK);
+        assert_eq!(hoc_mesh_run_increments(m, 10), HOC_OK);
+        assert_eq!(hoc_mesh_repair_summary(m, &mut r), HOC_OK);
+        assert_eq!((r.bad_cells, r.surface_cells, r.edge_removals, r.bad_cells_left), (1, 1, 1, 0));
+        assert_eq!((r.cells_removed, r.cells_added), (4, 4));
+        let (mut nc, mut npc) = (0, 0);
+        assert_eq!(hoc_mesh_cell_count(m, &mut nc, &mut npc), HOC_OK);
+        let mut input = vec![-1i64; nc];
+        assert_eq!(hoc_mesh_get_input_cells(m, nc, input.as_mut_ptr()), HOC_OK);
+        assert_eq!(&input[..3], &[2, 4, 5], "cell 0 and three of its neighbours were replaced");
+        assert!(input.iter().all(|&c| (0..7).contains(&c)));
+        let mut q = std::mem::zeroed::<HocQuality>();
+        assert_eq!(hoc_mesh_quality(m, &mut q), HOC_OK);
+        assert_eq!(q.n_certified_invalid, 0);
+        hoc_mesh_destroy(&mut m);
+    }
+}
