@@ -646,6 +646,70 @@ pub(crate) mod tests {
     }
 
     #[test]
+    fn row_sum_bound_is_above_every_eigenvalue_of_the_jacobi_scaled_matrix() {
+        use super::super::pmg::{Chebyshev, ChebyshevParams};
+        for block in [1, 3] {
+            let (a, v) = grid_laplacian(12, block);
+            let mut op = SymmetricOperator::try_new(&a).unwrap();
+            op.update(&v);
+            let bound = BlockJacobi::try_new(&a, &v, block).unwrap().row_sum_bound(&op, &v);
+            let params = ChebyshevParams { power_iterations: 2000, ..Default::default() };
+            let lambda = Chebyshev::try_new(&op, &a, &v, block, params).unwrap().estimate();
+            let safe = Chebyshev::try_new_safe(&op, &a, &v, block, ChebyshevParams::default()).unwrap();
+            println!("block {block}: lambda_max {lambda:.4}, bound {bound:.4}");
+            assert!(bound >= lambda && bound < 3.0 * lambda, "block {block}: {bound} vs {lambda}");
+            assert_eq!(safe.lambda_max(), bound);
+        }
+    }
+
+    #[test]
+    fn nearly_singular_blocks_are_shifted_and_indefinite_ones_refused() {
+        // One 3×3 block: rows 0 and 1 equal to 1e-13.
+        let a = SymmetricCsc { n: 3, col_ptr: vec![0, 3, 5, 6], row_idx: vec![0, 1, 2, 1, 2, 2] };
+        let v = [1.0, 1.0, 0.0, 1.0 + 1e-13, 0.0, 2.0];
+        let jac = BlockJacobi::try_new(&a, &v, 3).unwrap();
+        assert_eq!(jac.regularised(), 1);
+        let mut z = [0.0; 3];
+        jac.apply_into(&[1.0, -1.0, 0.0], &mut z);
+        // (B + δI)⁻¹ on the near null vector (1, −1, 0): about 1/δ, δ = 2e-8.
+        assert!(z.iter().all(|x| x.is_finite()) && (z[0] * 2e-8 - 1.0).abs() < 1e-3, "{z:?}");
+        let well = [4.0, 1.0, 0.0, 3.0, 0.0, 2.0];
+        assert_eq!(BlockJacobi::try_new(&a, &well, 3).unwrap().regularised(), 0);
+        let indefinite = [1.0, 2.0, 0.0, 1.0, 0.0, 2.0];
+        assert!(BlockJacobi::try_new(&a, &indefinite, 3).is_err());
+    }
+
+    #[test]
+    fn pcg_reports_stagnation_and_stops_when_asked() {
+        // Diagonal, condition number 1e8, with a preconditioner that changes
+        // at every call: conjugacy is lost and the residual crawls.
+        let n = 200;
+        let d: Vec<f64> = (0..n).map(|i| 10f64.powf(8.0 * i as f64 / (n - 1) as f64)).collect();
+        let b = vec![1.0; n];
+        let mut calls = 0usize;
+        let mut apply_a = |x: &[f64], y: &mut [f64]| y.iter_mut().zip(x.iter().zip(&d)).for_each(|(y, (x, d))| *y = d * x);
+        let mut varying = |r: &[f64], z: &mut [f64]| {
+            calls += 1;
+            for (i, (z, r)) in z.iter_mut().zip(r).enumerate() {
+                *z = r * (1.5 + ((i * 7 + calls * 13) as f64).sin());
+            }
+            Ok(())
+        };
+        let params = PcgParams { rtol: 1e-10, max_iterations: 5000 };
+        let mut x = vec![0.0; n];
+        let r = pcg(&mut apply_a, &mut varying, &b, &mut x, params, 20, &mut |_| true);
+        assert!(matches!(r, Err(PcgFailure::Stagnated { window: 20, .. })), "{r:?}");
+        assert!(x.iter().all(|v| v.is_finite()));
+        let mut x = vec![0.0; n];
+        let mut identity = |r: &[f64], z: &mut [f64]| {
+            z.copy_from_slice(r);
+            Ok(())
+        };
+        let r = pcg(&mut apply_a, &mut identity, &b, &mut x, params, 0, &mut |it| it < 3);
+        assert_eq!(r, Err(PcgFailure::Stopped { iteration: 3 }));
+    }
+
+    #[test]
     fn block_inverse_is_the_inverse() {
         let a = [4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0];
         let mut inv = [0.0; 9];
