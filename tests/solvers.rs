@@ -11,7 +11,9 @@ use hocurve::material::MaterialModel;
 use hocurve::mesh::HighOrderMesh;
 use hocurve::solver::pcg::{try_pcg, BlockJacobi, PcgParams, SymmetricOperator};
 use hocurve::solver::pmg::galerkin_product;
-use hocurve::solver::{IterativeParams, IterativeSolver, LinearSolver, SolverChoice, SymmetricCsc};
+use hocurve::solver::{
+    DirectSolver, IterativeParams, IterativeSolver, LinearSolver, SolvedBy, SolverChoice, SymmetricCsc,
+};
 
 fn run(case: &Case, order: usize, formulation: Formulation, solver: SolverChoice) -> hocurve::Result<CurvedMesh> {
     let mut mesh = case.mesh.clone();
@@ -167,5 +169,52 @@ fn pmultigrid_needs_far_fewer_iterations_than_jacobi_pcg() {
         assert!(4 * it_pmg < it_jac, "p={p}: p-multigrid {it_pmg} vs Jacobi {it_jac}");
         let scale = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         assert!(x.iter().zip(&y).all(|(a, b)| (a - b).abs() < 1e-6 * scale));
+    }
+}
+
+/// Two systems on one pattern, as in two load increments: the cube of
+/// regular cells, then the same cube with one sliver cell of quality 1e-5.
+/// The fine smoother's λ_max(D⁻¹A) estimate for the second matrix is
+/// warm-started from the first one's dominant vector and misses the
+/// sliver's mode: the Chebyshev interval ends at hi = 3.14 (p = 2) and 4.89
+/// (p = 4) while λ_max = 3.85 and 5.37 exceed hi·(1 + 1/30), beyond which the
+/// smoother's error polynomial exceeds 1 and the preconditioner is indefinite.
+/// Without the restart, PCG stopped with "the preconditioner is not positive
+/// definite" (rᵀz = −6.5e-4 at p = 2, −2.0e-4 at p = 4) and "did not converge
+/// in 1000 iterations (relative residual 3.5e-5)" at p = 3. The direct
+/// fallback is disabled so that it cannot hide a breakdown.
+#[test]
+fn pcg_restarts_with_a_safe_preconditioner_when_slivers_break_the_default_one() {
+    let case = |mesh| Case { name: "cube".into(), mesh, projector: Default::default(), description: String::new() };
+    let (regular, slivers) = (case(common::kuhn_cube(4, 0.0)), case(common::cube_with_slivers(4, 1, 1e-5)));
+    for p in [2, 3, 4] {
+        let a = common::straight_system(&regular, p, false, false);
+        let b = common::straight_system(&slivers, p, false, false);
+        assert_eq!((&a.pattern.col_ptr, &a.pattern.row_idx), (&b.pattern.col_ptr, &b.pattern.row_idx));
+        let n = a.pattern.n;
+        let params = IterativeParams { fallback_max_dofs: 0, ..Default::default() };
+        let mut solver = IterativeSolver::try_new(&a.pattern, 3, multigrid_levels(&a.mesh, &a.dofs), params).unwrap();
+        let mut x = vec![0.0; n];
+        let first = solver.solve(&a.pattern, &a.system.values, &a.system.rhs, &mut x).unwrap();
+        assert_eq!((first.solved_by, first.fallback), (SolvedBy::Pcg, None));
+        let second = solver.solve(&b.pattern, &b.system.values, &b.system.rhs, &mut x);
+        let second = second.unwrap_or_else(|e| panic!("p = {p}: {e}"));
+        println!("p={p}: {n} unknowns, {first:?}, then {second:?}");
+        assert_eq!(second.solved_by, SolvedBy::PcgRestarted, "p = {p}");
+        assert!(second.fallback.is_some());
+        let (values, rhs) = (&b.system.values, &b.system.rhs);
+        let r = b.pattern.sym_matvec(values, &x);
+        let res = r.iter().zip(rhs).map(|(p, q)| (p - q).powi(2)).sum::<f64>().sqrt();
+        let b_norm = rhs.iter().map(|v| v * v).sum::<f64>().sqrt();
+        assert!(res <= 1.001e-5 * b_norm, "p = {p}: relative residual {:e}", res / b_norm);
+        let mut exact = vec![0.0; n];
+        DirectSolver::try_new(&b.pattern).unwrap().solve(&b.pattern, values, rhs, &mut exact).unwrap();
+        let scale = exact.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let err = x.iter().zip(&exact).fold(0.0f64, |m, (p, q)| m.max((p - q).abs()));
+        println!("p={p}: max |x - x_direct| = {err:.1e} of max |x| = {scale:.1e}");
+        assert!(err < 1e-3 * scale, "p = {p}");
+        // The restart refreshed the warm start: the default preconditioner again.
+        let third = solver.solve(&b.pattern, values, rhs, &mut vec![0.0; n]).unwrap();
+        assert_eq!((third.solved_by, third.fallback), (SolvedBy::Pcg, None), "p = {p}");
     }
 }

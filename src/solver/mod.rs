@@ -22,14 +22,94 @@ pub use external::{CsrView, ExternalAdapter, ExternalSolver, FullCsrPattern, Sys
 pub use iterative::{IterativeParams, IterativeSolver, FALLBACK_DIRECT_MAX_DOFS};
 pub use lu::try_lu_solve_in_place;
 pub use pmg::SparseRows;
+pub use pcg::PcgFailure;
 
 use crate::{Error, Result};
 
 /// What one linear solve reports.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct SolveStats {
-    /// Krylov iterations (0 for a direct solve).
+    /// Krylov iterations run, including those of an attempt that broke down
+    /// before a restart or a direct fallback (0 for a direct solve).
     pub iterations: usize,
+    /// The solver that produced the solution.
+    pub solved_by: SolvedBy,
+    /// Why the solver's first choice did not produce it (`None`: it did).
+    pub fallback: Option<FallbackReason>,
+}
+
+/// Which solver produced a solution ([`SolveStats::solved_by`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub enum SolvedBy {
+    /// Preconditioned conjugate gradients with the default preconditioner.
+    Pcg,
+    /// PCG restarted, after a breakdown, with the preconditioner rebuilt in
+    /// its safe mode (double precision, Gershgorin bound of λ_max).
+    PcgRestarted,
+    /// Sparse Cholesky.
+    #[default]
+    Direct,
+    /// Sparse LU (the Cholesky factorisation failed: not positive definite).
+    DirectLu,
+    /// The host's solver.
+    External,
+}
+
+impl SolvedBy {
+    /// "pcg", "pcg-restarted", "direct", "direct-lu" or "external".
+    pub fn name(self) -> &'static str {
+        match self {
+            SolvedBy::Pcg => "pcg",
+            SolvedBy::PcgRestarted => "pcg-restarted",
+            SolvedBy::Direct => "direct",
+            SolvedBy::DirectLu => "direct-lu",
+            SolvedBy::External => "external",
+        }
+    }
+
+    /// All values, in the order of their C codes (`HocSolvedBy`).
+    pub const ALL: [SolvedBy; 5] =
+        [SolvedBy::Pcg, SolvedBy::PcgRestarted, SolvedBy::Direct, SolvedBy::DirectLu, SolvedBy::External];
+}
+
+/// Why a solve fell back from its first choice ([`SolveStats::fallback`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum FallbackReason {
+    /// PCG found rᵀz ≤ 0: the preconditioner was not positive definite.
+    PreconditionerNotPositive,
+    /// PCG's residual stagnated ([`pcg::pcg`]).
+    Stagnation,
+    /// PCG was slow and a fresh estimate of λ_max(D⁻¹A) exceeded the
+    /// warm-started one of the smoother: the preconditioner may not be
+    /// positive definite.
+    EigenvalueUnderestimated,
+    /// PCG reached its iteration limit while still converging.
+    NotConverged,
+    /// PCG's residual became infinite or NaN.
+    NonFinite,
+    /// PCG found pᵀAp ≤ 0: the matrix is not positive definite.
+    MatrixNotPositive,
+    /// The preconditioner could not be built (a diagonal block or the coarse
+    /// matrix not positive definite, a failed eigenvalue estimate).
+    PreconditionerSetup,
+    /// Sparse Cholesky failed (the matrix is not positive definite): LU.
+    CholeskyFailed,
+}
+
+impl FallbackReason {
+    /// A short identifier, e.g. "preconditioner-not-positive-definite".
+    pub fn name(self) -> &'static str {
+        match self {
+            FallbackReason::PreconditionerNotPositive => "preconditioner-not-positive-definite",
+            FallbackReason::Stagnation => "stagnation",
+            FallbackReason::EigenvalueUnderestimated => "eigenvalue-underestimated",
+            FallbackReason::NotConverged => "not-converged",
+            FallbackReason::NonFinite => "non-finite-residual",
+            FallbackReason::MatrixNotPositive => "matrix-not-positive-definite",
+            FallbackReason::PreconditionerSetup => "preconditioner-setup-failed",
+            FallbackReason::CholeskyFailed => "cholesky-failed",
+        }
+    }
 }
 
 /// A solver for a sequence of symmetric systems on one sparsity pattern (one
@@ -75,11 +155,18 @@ impl LinearSolver for DirectSolver {
         match self.chol.try_factor_solve_in_place(pattern, values, x) {
             Err(Error::Solver(_)) => {
                 x.copy_from_slice(rhs);
-                try_lu_solve_in_place(pattern, values, x)?
+                try_lu_solve_in_place(pattern, values, x)?;
+                Ok(SolveStats {
+                    iterations: 0,
+                    solved_by: SolvedBy::DirectLu,
+                    fallback: Some(FallbackReason::CholeskyFailed),
+                })
             }
-            r => r?,
+            r => {
+                r?;
+                Ok(SolveStats { iterations: 0, solved_by: SolvedBy::Direct, fallback: None })
+            }
         }
-        Ok(SolveStats::default())
     }
 }
 

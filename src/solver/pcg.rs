@@ -186,6 +186,68 @@ impl Default for PcgParams {
 /// z = M⁻¹ r, for [`try_pcg`].
 pub type Preconditioner<'a> = dyn FnMut(&[f64], &mut [f64]) -> Result<()> + 'a;
 
+/// Why [`pcg`] stopped without converging.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PcgFailure {
+    /// rᵀz ≤ 0 (or NaN): the preconditioner is not positive definite.
+    PreconditionerNotPositive { iteration: usize, rz: f64 },
+    /// pᵀAp ≤ 0 (or NaN): the matrix is not positive definite.
+    MatrixNotPositive { iteration: usize, pap: f64 },
+    /// The residual became infinite or NaN.
+    NonFinite { iteration: usize },
+    /// The smallest residual of the last `window` iterations is not below
+    /// [`STAGNATION_FACTOR`] times the smallest one before them.
+    Stagnated { iteration: usize, window: usize, relative_residual: f64 },
+    /// `max_iterations` reached.
+    NotConverged { iterations: usize, relative_residual: f64, rtol: f64 },
+    /// The caller's check stopped the iteration ([`pcg`]'s `check`).
+    Stopped { iteration: usize },
+    /// The preconditioner returned an error.
+    Preconditioner(Error),
+}
+
+impl std::fmt::Display for PcgFailure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            PcgFailure::PreconditionerNotPositive { iteration, rz } => write!(
+                f,
+                "PCG: the preconditioner is not positive definite (rᵀz = {rz:.3e} in iteration {iteration})"
+            ),
+            PcgFailure::MatrixNotPositive { iteration, pap } => {
+                write!(f, "PCG breakdown in iteration {iteration}: pᵀAp = {pap:.3e}, the matrix is not positive definite")
+            }
+            PcgFailure::NonFinite { iteration } => write!(f, "PCG: the residual is not finite in iteration {iteration}"),
+            PcgFailure::Stagnated { iteration, window, relative_residual } => write!(
+                f,
+                "PCG stagnated: the residual did not fall by {:.0} % in the last {window} iterations \
+                 (relative residual {relative_residual:.2e} after {iteration})",
+                100.0 * (1.0 - STAGNATION_FACTOR)
+            ),
+            PcgFailure::NotConverged { iterations, relative_residual, rtol } => write!(
+                f,
+                "PCG did not converge in {iterations} iterations (relative residual {relative_residual:.2e}, \
+                 tolerance {rtol:.1e})"
+            ),
+            PcgFailure::Stopped { iteration } => write!(f, "PCG stopped by its caller in iteration {iteration}"),
+            PcgFailure::Preconditioner(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl From<PcgFailure> for Error {
+    fn from(f: PcgFailure) -> Error {
+        match f {
+            PcgFailure::Preconditioner(e) => e,
+            f => Error::Solver(f.to_string()),
+        }
+    }
+}
+
+/// [`pcg`] declares stagnation when the smallest residual of the last
+/// `stagnation_window` iterations is above this fraction of the smallest one
+/// before them.
+pub const STAGNATION_FACTOR: f64 = 0.9;
+
 /// Solve A x = b by preconditioned conjugate gradients from the initial guess
 /// in `x` (Saad, Iterative Methods, Alg. 9.1); returns the iterations.
 ///
@@ -201,6 +263,26 @@ pub fn try_pcg(
     x: &mut [f64],
     params: PcgParams,
 ) -> Result<usize> {
+    pcg(apply_a, apply_m, b, x, params, 0, &mut |_| true).map_err(Error::from)
+}
+
+/// [`try_pcg`] with the reason of a failure, and, unless `stagnation_window`
+/// is 0, a stop on stagnation: once 2·`stagnation_window` iterations have run,
+/// it stops when the smallest residual norm of the last `stagnation_window`
+/// iterations is not below [`STAGNATION_FACTOR`] times the smallest one before
+/// them. After every iteration that has not converged, `check(iteration)`
+/// may stop it by returning false (it does not change the iterates
+/// otherwise). On failure `x` holds the last iterate (not finite after
+/// [`PcgFailure::NonFinite`]).
+pub fn pcg(
+    apply_a: &mut dyn FnMut(&[f64], &mut [f64]),
+    apply_m: &mut Preconditioner<'_>,
+    b: &[f64],
+    x: &mut [f64],
+    params: PcgParams,
+    stagnation_window: usize,
+    check: &mut dyn FnMut(usize) -> bool,
+) -> std::result::Result<usize, PcgFailure> {
     let n = b.len();
     let b_norm = dot(b, b).sqrt();
     if b_norm == 0.0 {
@@ -216,42 +298,52 @@ pub fn try_pcg(
         return Ok(0);
     }
     let mut z = vec![0.0; n];
-    apply_m(&r, &mut z)?;
+    apply_m(&r, &mut z).map_err(PcgFailure::Preconditioner)?;
     let mut p = z.clone();
     let mut rz = dot(&r, &z);
     let mut q = vec![0.0; n];
+    // Smallest residual norm up to each iteration (index = iteration), for
+    // the stagnation test.
+    let mut best = if stagnation_window > 0 { vec![r_norm] } else { Vec::new() };
     for it in 1..=params.max_iterations {
         if rz.is_nan() || rz <= 0.0 {
-            return Err(Error::Solver(format!("PCG: the preconditioner is not positive definite (rᵀz = {rz:.3e})")));
+            return Err(PcgFailure::PreconditionerNotPositive { iteration: it, rz });
         }
         apply_a(&p, &mut q);
         let pq = dot(&p, &q);
         if pq.is_nan() || pq <= 0.0 {
-            return Err(Error::Solver(format!(
-                "PCG breakdown in iteration {it}: pᵀAp = {pq:.3e}, the matrix is not positive definite"
-            )));
+            return Err(PcgFailure::MatrixNotPositive { iteration: it, pap: pq });
         }
         let alpha = rz / pq;
         axpby_in_place(alpha, &p, 1.0, x);
         axpby_in_place(-alpha, &q, 1.0, &mut r);
         r_norm = dot(&r, &r).sqrt();
         if !r_norm.is_finite() {
-            return Err(Error::Solver(format!("PCG: the residual is not finite in iteration {it}")));
+            return Err(PcgFailure::NonFinite { iteration: it });
         }
         if r_norm <= target {
             return Ok(it);
         }
-        apply_m(&r, &mut z)?;
+        if stagnation_window > 0 {
+            let w = stagnation_window;
+            best.push(r_norm.min(best[it - 1]));
+            if it >= 2 * w && best[it] > STAGNATION_FACTOR * best[it - w] {
+                return Err(PcgFailure::Stagnated { iteration: it, window: w, relative_residual: r_norm / b_norm });
+            }
+        }
+        if !check(it) {
+            return Err(PcgFailure::Stopped { iteration: it });
+        }
+        apply_m(&r, &mut z).map_err(PcgFailure::Preconditioner)?;
         let rz_new = dot(&r, &z);
         axpby_in_place(1.0, &z, rz_new / rz, &mut p);
         rz = rz_new;
     }
-    Err(Error::Solver(format!(
-        "PCG did not converge in {} iterations (relative residual {:.2e}, tolerance {:.1e})",
-        params.max_iterations,
-        r_norm / b_norm,
-        params.rtol
-    )))
+    Err(PcgFailure::NotConverged {
+        iterations: params.max_iterations,
+        relative_residual: r_norm / b_norm,
+        rtol: params.rtol,
+    })
 }
 
 /// Inverse diagonal blocks of size `block` (1: point Jacobi; the spatial
@@ -261,11 +353,22 @@ pub struct BlockJacobi {
     block: usize,
     /// Row-major inverse of each block.
     inv: Vec<f64>,
+    /// Blocks shifted by [`BLOCK_SHIFT`] because they were nearly singular.
+    regularised: usize,
 }
 
+/// A diagonal block whose Cholesky pivot falls below this fraction of its
+/// diagonal entry is nearly singular (its inverse would be mostly round-off).
+pub const NEAR_SINGULAR_PIVOT: f64 = 1e-10;
+/// Such a block is inverted as B + δ I with δ = `BLOCK_SHIFT` · max diag(B).
+/// B + δI ≥ B keeps D⁻¹A's eigenvalues positive and no larger than with D.
+pub const BLOCK_SHIFT: f64 = 1e-8;
+
 impl BlockJacobi {
-    /// Invert the diagonal blocks of the matrix (`pattern`, `values`); fails if
-    /// one is not positive definite.
+    /// Invert the diagonal blocks of the matrix (`pattern`, `values`), in
+    /// double precision; a nearly singular block (a pivot below
+    /// [`NEAR_SINGULAR_PIVOT`] of its diagonal entry) is shifted by
+    /// [`BLOCK_SHIFT`] first. Fails if a block is not positive definite.
     pub fn try_new(pattern: &SymmetricCsc, values: &[f64], block: usize) -> Result<BlockJacobi> {
         let n = pattern.n;
         if !(1..=3).contains(&block) || !n.is_multiple_of(block) {
@@ -273,24 +376,46 @@ impl BlockJacobi {
         }
         let bb = block * block;
         let mut inv = vec![0.0; n * block];
-        inv.par_chunks_mut(bb).enumerate().try_for_each(|(i, out)| -> Result<()> {
-            let mut a = [0.0; 9];
-            for jc in 0..block {
-                let c = i * block + jc;
-                for k in pattern.col_ptr[c]..pattern.col_ptr[c + 1] {
-                    let r = pattern.row_idx[k] as usize;
-                    if r >= (i + 1) * block {
-                        break;
+        let regularised = inv
+            .par_chunks_mut(bb)
+            .enumerate()
+            .map(|(i, out)| -> Result<usize> {
+                let mut a = [0.0; 9];
+                for jc in 0..block {
+                    let c = i * block + jc;
+                    for k in pattern.col_ptr[c]..pattern.col_ptr[c + 1] {
+                        let r = pattern.row_idx[k] as usize;
+                        if r >= (i + 1) * block {
+                            break;
+                        }
+                        let ir = r - i * block;
+                        a[ir * block + jc] = values[k];
+                        a[jc * block + ir] = values[k];
                     }
-                    let ir = r - i * block;
-                    a[ir * block + jc] = values[k];
-                    a[jc * block + ir] = values[k];
                 }
-            }
-            invert_spd_block(&a[..bb], block, out)
-                .ok_or_else(|| Error::Solver(format!("block Jacobi: diagonal block {i} is not positive definite")))
-        })?;
-        Ok(BlockJacobi { block, inv })
+                let not_spd = || Error::Solver(format!("block Jacobi: diagonal block {i} is not positive definite"));
+                match invert_spd_block(&a[..bb], block, out) {
+                    Some(min_ratio) if min_ratio >= NEAR_SINGULAR_PIVOT => Ok(0),
+                    _ => {
+                        let diag_max = (0..block).map(|j| a[j * block + j]).fold(f64::NEG_INFINITY, f64::max);
+                        if !(0..block).all(|j| a[j * block + j] > 0.0) || !diag_max.is_finite() {
+                            return Err(not_spd());
+                        }
+                        for j in 0..block {
+                            a[j * block + j] += BLOCK_SHIFT * diag_max;
+                        }
+                        invert_spd_block(&a[..bb], block, out).ok_or_else(not_spd)?;
+                        Ok(1)
+                    }
+                }
+            })
+            .try_reduce(|| 0, |x, y| Ok(x + y))?;
+        Ok(BlockJacobi { block, inv, regularised })
+    }
+
+    /// Blocks that were shifted because nearly singular.
+    pub fn regularised(&self) -> usize {
+        self.regularised
     }
 
     /// z = D⁻¹ r.
@@ -307,13 +432,56 @@ impl BlockJacobi {
             }
         });
     }
+
+    /// ‖D⁻¹A‖_∞, the largest absolute row sum of D⁻¹A for the matrix held by
+    /// `op` with lower-triangle `values` (D its blocks inverted here): an
+    /// upper bound of every eigenvalue of D⁻¹A (Gershgorin), computed in
+    /// double precision from the entries, so it cannot miss a mode the way a
+    /// power iteration can.
+    pub fn row_sum_bound(&self, op: &SymmetricOperator, values: &[f64]) -> f64 {
+        let b = self.block;
+        let bb = b * b;
+        let n = op.n();
+        (0..n / b)
+            .into_par_iter()
+            .map_init(
+                || (vec![[0.0f64; 3]; n], vec![false; n], Vec::<usize>::new()),
+                |(acc, seen, list), i| {
+                    for k in 0..b {
+                        for (c, a) in op.row(values, i * b + k) {
+                            if !seen[c] {
+                                seen[c] = true;
+                                list.push(c);
+                            }
+                            acc[c][k] += a;
+                        }
+                    }
+                    let m = &self.inv[i * bb..(i + 1) * bb];
+                    let mut sums = [0.0f64; 3];
+                    for &c in list.iter() {
+                        let w = acc[c];
+                        for (ii, s) in sums.iter_mut().enumerate().take(b) {
+                            *s += (0..b).map(|j| m[ii * b + j] * w[j]).sum::<f64>().abs();
+                        }
+                        acc[c] = [0.0; 3];
+                        seen[c] = false;
+                    }
+                    list.clear();
+                    sums.iter().take(b).fold(0.0f64, |x, &y| x.max(y))
+                },
+            )
+            .reduce(|| 0.0, f64::max)
+    }
 }
 
 /// Inverse of a symmetric block of size 1..=3 by Cholesky; `None` unless
-/// positive definite.
-fn invert_spd_block(a: &[f64], b: usize, out: &mut [f64]) -> Option<()> {
+/// positive definite, else the smallest ratio of a pivot (before its square
+/// root) to its diagonal entry (1 for a diagonal block; near 0 when a column
+/// is nearly a combination of the previous ones).
+fn invert_spd_block(a: &[f64], b: usize, out: &mut [f64]) -> Option<f64> {
     // L Lᵀ = A, then A⁻¹ column by column.
     let mut l = [0.0; 9];
+    let mut min_ratio = f64::INFINITY;
     for j in 0..b {
         let mut d = a[j * b + j];
         for k in 0..j {
@@ -322,6 +490,7 @@ fn invert_spd_block(a: &[f64], b: usize, out: &mut [f64]) -> Option<()> {
         if d.is_nan() || d <= 0.0 {
             return None;
         }
+        min_ratio = min_ratio.min(d / a[j * b + j]);
         let d = d.sqrt();
         l[j * b + j] = d;
         for i in j + 1..b {
@@ -352,7 +521,7 @@ fn invert_spd_block(a: &[f64], b: usize, out: &mut [f64]) -> Option<()> {
             out[i * b + c] = y[i];
         }
     }
-    Some(())
+    Some(min_ratio)
 }
 
 #[cfg(test)]
@@ -474,6 +643,70 @@ pub(crate) mod tests {
         );
         assert!(matches!(r, Err(Error::Solver(_))), "{r:?}");
         assert!(BlockJacobi::try_new(&a, &v, 1).is_err());
+    }
+
+    #[test]
+    fn row_sum_bound_is_above_every_eigenvalue_of_the_jacobi_scaled_matrix() {
+        use super::super::pmg::{Chebyshev, ChebyshevParams};
+        for block in [1, 3] {
+            let (a, v) = grid_laplacian(12, block);
+            let mut op = SymmetricOperator::try_new(&a).unwrap();
+            op.update(&v);
+            let bound = BlockJacobi::try_new(&a, &v, block).unwrap().row_sum_bound(&op, &v);
+            let params = ChebyshevParams { power_iterations: 2000, ..Default::default() };
+            let lambda = Chebyshev::try_new(&op, &a, &v, block, params).unwrap().estimate();
+            let safe = Chebyshev::try_new_safe(&op, &a, &v, block, ChebyshevParams::default()).unwrap();
+            println!("block {block}: lambda_max {lambda:.4}, bound {bound:.4}");
+            assert!(bound >= lambda && bound < 3.0 * lambda, "block {block}: {bound} vs {lambda}");
+            assert_eq!(safe.lambda_max(), bound);
+        }
+    }
+
+    #[test]
+    fn nearly_singular_blocks_are_shifted_and_indefinite_ones_refused() {
+        // One 3×3 block: rows 0 and 1 equal to 1e-13.
+        let a = SymmetricCsc { n: 3, col_ptr: vec![0, 3, 5, 6], row_idx: vec![0, 1, 2, 1, 2, 2] };
+        let v = [1.0, 1.0, 0.0, 1.0 + 1e-13, 0.0, 2.0];
+        let jac = BlockJacobi::try_new(&a, &v, 3).unwrap();
+        assert_eq!(jac.regularised(), 1);
+        let mut z = [0.0; 3];
+        jac.apply_into(&[1.0, -1.0, 0.0], &mut z);
+        // (B + δI)⁻¹ on the near null vector (1, −1, 0): about 1/δ, δ = 2e-8.
+        assert!(z.iter().all(|x| x.is_finite()) && (z[0] * 2e-8 - 1.0).abs() < 1e-3, "{z:?}");
+        let well = [4.0, 1.0, 0.0, 3.0, 0.0, 2.0];
+        assert_eq!(BlockJacobi::try_new(&a, &well, 3).unwrap().regularised(), 0);
+        let indefinite = [1.0, 2.0, 0.0, 1.0, 0.0, 2.0];
+        assert!(BlockJacobi::try_new(&a, &indefinite, 3).is_err());
+    }
+
+    #[test]
+    fn pcg_reports_stagnation_and_stops_when_asked() {
+        // Diagonal, condition number 1e8, with a preconditioner that changes
+        // at every call: conjugacy is lost and the residual crawls.
+        let n = 200;
+        let d: Vec<f64> = (0..n).map(|i| 10f64.powf(8.0 * i as f64 / (n - 1) as f64)).collect();
+        let b = vec![1.0; n];
+        let mut calls = 0usize;
+        let mut apply_a = |x: &[f64], y: &mut [f64]| y.iter_mut().zip(x.iter().zip(&d)).for_each(|(y, (x, d))| *y = d * x);
+        let mut varying = |r: &[f64], z: &mut [f64]| {
+            calls += 1;
+            for (i, (z, r)) in z.iter_mut().zip(r).enumerate() {
+                *z = r * (1.5 + ((i * 7 + calls * 13) as f64).sin());
+            }
+            Ok(())
+        };
+        let params = PcgParams { rtol: 1e-10, max_iterations: 5000 };
+        let mut x = vec![0.0; n];
+        let r = pcg(&mut apply_a, &mut varying, &b, &mut x, params, 20, &mut |_| true);
+        assert!(matches!(r, Err(PcgFailure::Stagnated { window: 20, .. })), "{r:?}");
+        assert!(x.iter().all(|v| v.is_finite()));
+        let mut x = vec![0.0; n];
+        let mut identity = |r: &[f64], z: &mut [f64]| {
+            z.copy_from_slice(r);
+            Ok(())
+        };
+        let r = pcg(&mut apply_a, &mut identity, &b, &mut x, params, 0, &mut |it| it < 3);
+        assert_eq!(r, Err(PcgFailure::Stopped { iteration: 3 }));
     }
 
     #[test]

@@ -163,9 +163,25 @@ impl Default for ChebyshevParams {
 }
 
 /// Chebyshev smoother on D⁻¹A for one matrix.
+///
+/// The V-cycle built on it is symmetric positive definite (for a symmetric
+/// positive definite A, and an exact or SPD coarse solve) exactly when the
+/// Chebyshev error polynomial r, r(0) = 1, satisfies |r(λ)| < 1 on the
+/// spectrum of D⁻¹A: the cycle's inverse is then the sum of the SPD
+/// symmetrised smoother (1 − r(D⁻¹A)²)(D⁻¹A)⁻¹D⁻¹ and an SPD coarse term. On
+/// [lo, hi] the polynomial is small, on (0, lo) it falls from 1, and above hi
+/// it grows: |r(λ)| < 1 holds up to λ = hi + lo and fails beyond. Hence the
+/// need for hi + lo > λ_max(D⁻¹A): a power-iteration estimate from below
+/// (times 1.1) can miss a mode localised on a few nodes (a sliver cell) and
+/// give an indefinite preconditioner; [`Self::try_new_safe`] takes hi from a
+/// Gershgorin bound instead.
 pub struct Chebyshev {
     jacobi: BlockJacobi,
     lambda_max: f64,
+    /// The power-iteration estimate of λ_max(D⁻¹A) (not enlarged).
+    estimate: f64,
+    /// Lower end of the smoothed interval.
+    lo: f64,
     params: ChebyshevParams,
     power: Vec<f64>,
 }
@@ -187,6 +203,13 @@ impl Chebyshev {
     /// vector of a previous, similar matrix ([`Self::power_vector`]): then
     /// `power_iterations / 6` steps (at least 2) suffice. `op` applies the
     /// matrix (`pattern`, `values`) or an approximation of it (single precision).
+    ///
+    /// The warm start is what the sequence of load increments relies on, and
+    /// its weak point: if the new matrix has a larger eigenvalue on a mode the
+    /// previous dominant vector barely contains (a cell that became nearly
+    /// degenerate), two steps do not find it (measured: 3.17 against 3.78 at
+    /// p = 2). PCG then sees rᵀz ≤ 0 or stagnates, and [`super::IterativeSolver`]
+    /// rebuilds with [`Self::try_new_safe`].
     pub fn try_new_from(
         op: &dyn Operator,
         pattern: &SymmetricCsc,
@@ -195,31 +218,76 @@ impl Chebyshev {
         params: ChebyshevParams,
         start: Option<Vec<f64>>,
     ) -> Result<Chebyshev> {
-        let jacobi = BlockJacobi::try_new(pattern, values, block)?;
-        let n = pattern.n;
-        let steps = if start.is_some() { (params.power_iterations / 6).max(2) } else { params.power_iterations.max(1) };
-        let mut v = start
-            .filter(|v| v.len() == n)
-            .unwrap_or_else(|| (0..n).map(|i| 1.0 + 0.5 * ((i as f64) * 1.618).sin()).collect());
-        let norm = dot(&v, &v).sqrt();
-        v.iter_mut().for_each(|x| *x /= norm);
-        let (mut av, mut u) = (vec![0.0; n], vec![0.0; n]);
-        let mut lambda = 0.0;
-        for _ in 0..steps {
-            op.apply_into(&v, &mut av);
-            jacobi.apply_into(&av, &mut u);
-            lambda = dot(&u, &u).sqrt();
-            if !(lambda > 0.0 && lambda.is_finite()) {
-                return Err(Error::Solver(format!("Chebyshev: λ_max estimate {lambda:.3e} is not positive")));
-            }
-            std::mem::swap(&mut u, &mut v);
-            v.iter_mut().for_each(|x| *x /= lambda);
-        }
-        Ok(Chebyshev { jacobi, lambda_max: 1.1 * lambda, params, power: v })
+        Self::try_with_jacobi(op, BlockJacobi::try_new(pattern, values, block)?, params, start)
     }
 
+    /// [`Self::try_new_from`] with the diagonal blocks already inverted.
+    pub fn try_with_jacobi(
+        op: &dyn Operator,
+        jacobi: BlockJacobi,
+        params: ChebyshevParams,
+        start: Option<Vec<f64>>,
+    ) -> Result<Chebyshev> {
+        let steps = if start.is_some() { (params.power_iterations / 6).max(2) } else { params.power_iterations.max(1) };
+        let (lambda, v) = power_estimate(op, &jacobi, steps, start)?;
+        let lambda_max = 1.1 * lambda;
+        Ok(Chebyshev { jacobi, lambda_max, estimate: lambda, lo: lambda_max / params.ratio, params, power: v })
+    }
+
+    /// The smoother with a guaranteed interval: hi = ‖D⁻¹A‖_∞ (Gershgorin,
+    /// [`BlockJacobi::row_sum_bound`], ≥ λ_max(D⁻¹A)) and lo = min(1.1·λ, hi)
+    /// / ratio for a cold power estimate λ; the products in double precision
+    /// with the matrix itself (`op` holds it with `values`). hi ≥ λ_max makes
+    /// |r| < 1 on the whole spectrum, so the V-cycle is SPD. The bound is
+    /// loose (about 2× the estimate), so the smoothing is weaker: this is
+    /// the fallback, not the default.
+    pub fn try_new_safe(
+        op: &SymmetricOperator,
+        pattern: &SymmetricCsc,
+        values: &[f64],
+        block: usize,
+        params: ChebyshevParams,
+    ) -> Result<Chebyshev> {
+        Self::try_safe_with_jacobi(op, values, BlockJacobi::try_new(pattern, values, block)?, params)
+    }
+
+    /// [`Self::try_new_safe`] with the diagonal blocks already inverted.
+    pub fn try_safe_with_jacobi(
+        op: &SymmetricOperator,
+        values: &[f64],
+        jacobi: BlockJacobi,
+        params: ChebyshevParams,
+    ) -> Result<Chebyshev> {
+        let bound = jacobi.row_sum_bound(op, values);
+        if !(bound > 0.0 && bound.is_finite()) {
+            return Err(Error::Solver(format!("Chebyshev: the bound {bound:.3e} of λ_max is not positive")));
+        }
+        let steps = params.power_iterations.max(SAFE_POWER_ITERATIONS);
+        let (lambda, v) = power_estimate(&WithValues(op, values), &jacobi, steps, None)?;
+        let lo = (1.1 * lambda).min(bound) / params.ratio;
+        Ok(Chebyshev { jacobi, lambda_max: bound, estimate: lambda, lo, params, power: v })
+    }
+
+    /// Upper end of the smoothed interval.
     pub fn lambda_max(&self) -> f64 {
         self.lambda_max
+    }
+
+    /// The power-iteration estimate of λ_max(D⁻¹A) it was built with.
+    pub fn estimate(&self) -> f64 {
+        self.estimate
+    }
+
+    /// A fresh power estimate of λ_max(D⁻¹A) from the fixed start vector
+    /// (`steps` products with `op`), without the factor 1.1: to check a
+    /// warm-started estimate ([`Self::try_new_from`]).
+    pub fn cold_estimate(&self, op: &dyn Operator, steps: usize) -> Result<f64> {
+        power_estimate(op, &self.jacobi, steps.max(1), None).map(|(lambda, _)| lambda)
+    }
+
+    /// Diagonal blocks regularised because nearly singular.
+    pub fn regularised_blocks(&self) -> usize {
+        self.jacobi.regularised()
     }
 
     /// The last power-iteration vector (a start for the next, similar matrix).
@@ -230,7 +298,7 @@ impl Chebyshev {
     /// x = S r (Chebyshev from zero).
     fn smooth_into(&self, op: &dyn Operator, r: &[f64], x: &mut [f64], w: &mut SmootherWork) {
         let hi = self.lambda_max;
-        let lo = hi / self.params.ratio;
+        let lo = self.lo;
         let (theta, delta) = ((hi + lo) / 2.0, (hi - lo) / 2.0);
         let sigma = theta / delta;
         let mut rho = 1.0 / sigma;
@@ -248,6 +316,39 @@ impl Chebyshev {
             rho = rho_new;
         }
     }
+}
+
+/// Power-iteration steps of [`Chebyshev::try_new_safe`] (for the lower end
+/// of the interval only).
+const SAFE_POWER_ITERATIONS: usize = 20;
+
+/// `steps` power iterations on D⁻¹A from `start` (or a fixed vector):
+/// ‖D⁻¹A v‖ for the last unit v, and the next vector.
+fn power_estimate(
+    op: &dyn Operator,
+    jacobi: &BlockJacobi,
+    steps: usize,
+    start: Option<Vec<f64>>,
+) -> Result<(f64, Vec<f64>)> {
+    let n = op.n();
+    let mut v = start
+        .filter(|v| v.len() == n)
+        .unwrap_or_else(|| (0..n).map(|i| 1.0 + 0.5 * ((i as f64) * 1.618).sin()).collect());
+    let norm = dot(&v, &v).sqrt();
+    v.iter_mut().for_each(|x| *x /= norm);
+    let (mut av, mut u) = (vec![0.0; n], vec![0.0; n]);
+    let mut lambda = 0.0;
+    for _ in 0..steps {
+        op.apply_into(&v, &mut av);
+        jacobi.apply_into(&av, &mut u);
+        lambda = dot(&u, &u).sqrt();
+        if !(lambda > 0.0 && lambda.is_finite()) {
+            return Err(Error::Solver(format!("Chebyshev: λ_max estimate {lambda:.3e} is not positive")));
+        }
+        std::mem::swap(&mut u, &mut v);
+        v.iter_mut().for_each(|x| *x /= lambda);
+    }
+    Ok((lambda, v))
 }
 
 /// Work vectors of the smoother.
@@ -337,6 +438,11 @@ impl Hierarchy {
     /// Numeric set-up for the fine matrix held by `op`: Galerkin operators
     /// level by level, smoothers, and the factor of the coarsest.
     pub fn try_update(&mut self, op: &SymmetricOperator, values: &[f64]) -> Result<()> {
+        self.try_update_with(op, values, false)
+    }
+
+    /// [`Self::try_update`]; with `safe`, the smoothers of [`Chebyshev::try_new_safe`].
+    pub fn try_update_with(&mut self, op: &SymmetricOperator, values: &[f64], safe: bool) -> Result<()> {
         self.ready = false;
         for k in 0..self.levels.len() {
             let (above, rest) = self.levels.split_at_mut(k);
@@ -348,6 +454,8 @@ impl Hierarchy {
             l.op.update(&l.values);
             if let Some((chol, factor)) = &mut l.chol {
                 *factor = chol.try_factor(&l.pattern, &l.values)?;
+            } else if safe {
+                l.smoother = Some(Chebyshev::try_new_safe(&l.op, &l.pattern, &l.values, self.block, self.params)?);
             } else {
                 l.smoother = Some(Chebyshev::try_new(&l.op, &l.pattern, &l.values, self.block, self.params)?);
             }

@@ -63,6 +63,12 @@ pub fn square_mesh(n: usize) -> LinearMesh {
 
 /// Unit cube split into 6n³ tetrahedra (Kuhn subdivision), interior vertices jittered.
 pub fn cube_mesh(n: usize) -> LinearMesh {
+    kuhn_cube(n, 0.1)
+}
+
+/// Unit cube split into 6n³ tetrahedra (Kuhn subdivision), interior vertices
+/// moved by up to `jitter`/n (0: the regular grid).
+pub fn kuhn_cube(n: usize, jitter: f64) -> LinearMesh {
     let mut coords = Vec::new();
     for k in 0..=n {
         for j in 0..=n {
@@ -70,7 +76,7 @@ pub fn cube_mesh(n: usize) -> LinearMesh {
                 let mut x = [i as f64 / n as f64, j as f64 / n as f64, k as f64 / n as f64];
                 if [i, j, k].iter().all(|&t| t > 0 && t < n) {
                     for (d, xd) in x.iter_mut().enumerate() {
-                        *xd += 0.1 / n as f64 * ((i * 7 + j * 3 + k * 5 + d * 13) as f64).sin();
+                        *xd += jitter / n as f64 * ((i * 7 + j * 3 + k * 5 + d * 13) as f64).sin();
                     }
                 }
                 coords.extend_from_slice(&x);
@@ -97,4 +103,66 @@ pub fn cube_mesh(n: usize) -> LinearMesh {
         }
     }
     LinearMesh { dim: 3, coords, cells, ..Default::default() }
+}
+
+/// Quality 6√2·V / l_max³ of tetrahedron `c` (1 for the regular one; signed).
+pub fn tet_quality(mesh: &LinearMesh, c: usize) -> f64 {
+    let p: Vec<[f64; 3]> = mesh.cells[4 * c..4 * c + 4].iter().map(|&v| mesh.vertex(v)).collect();
+    let e = |a: usize| [p[a][0] - p[0][0], p[a][1] - p[0][1], p[a][2] - p[0][2]];
+    let (a, b, d) = (e(1), e(2), e(3));
+    let det = a[0] * (b[1] * d[2] - b[2] * d[1]) - a[1] * (b[0] * d[2] - b[2] * d[0]) + a[2] * (b[0] * d[1] - b[1] * d[0]);
+    let mut l: f64 = 0.0;
+    for i in 0..4 {
+        for j in i + 1..4 {
+            l = l.max((0..3).map(|k| (p[i][k] - p[j][k]).powi(2)).sum::<f64>().sqrt());
+        }
+    }
+    2f64.sqrt() * det / l.powi(3)
+}
+
+/// The regular [`kuhn_cube`] with `count` interior vertices (all three grid
+/// indices even, so their stars are disjoint) each moved along a fixed
+/// direction until the worst cell around it has quality `quality`
+/// ([`tet_quality`]): `count` nearly degenerate cells, same connectivity as
+/// `kuhn_cube(n, 0.0)`.
+pub fn cube_with_slivers(n: usize, count: usize, quality: f64) -> LinearMesh {
+    let mut mesh = kuhn_cube(n, 0.0);
+    let nv = mesh.n_vertices();
+    let mut stars = vec![Vec::new(); nv];
+    for c in 0..mesh.n_cells() {
+        for &v in &mesh.cells[4 * c..4 * c + 4] {
+            stars[v].push(c);
+        }
+    }
+    let mut moved = 0;
+    for v in 0..nv {
+        let ijk = [v % (n + 1), (v / (n + 1)) % (n + 1), v / (n + 1) / (n + 1)];
+        if moved == count || ijk.iter().any(|&t| t == 0 || t == n || t % 2 == 1) {
+            continue;
+        }
+        let dir = [0.3 + 0.1 * (moved as f64).sin(), -0.7, 0.5];
+        let x0 = mesh.vertex(v);
+        let sign: Vec<f64> = stars[v].iter().map(|&c| tet_quality(&mesh, c).signum()).collect();
+        let worst = |mesh: &mut LinearMesh, t: f64| {
+            for d in 0..3 {
+                mesh.coords[3 * v + d] = x0[d] + t * dir[d];
+            }
+            stars[v].iter().zip(&sign).map(|(&c, s)| s * tet_quality(mesh, c)).fold(f64::INFINITY, f64::min)
+        };
+        // The worst quality falls from its start to 0 (then negative) along the ray: bisect.
+        let (mut lo, mut hi) = (0.0, 1.0 / n as f64);
+        for _ in 0..200 {
+            let mid = 0.5 * (lo + hi);
+            if worst(&mut mesh, mid) > quality {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let q = worst(&mut mesh, lo);
+        assert!((q - quality).abs() <= 1e-3 * quality, "vertex {v}: quality {q:e}");
+        moved += 1;
+    }
+    assert_eq!(moved, count, "not enough interior vertices");
+    mesh
 }
