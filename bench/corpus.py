@@ -3,7 +3,7 @@
 the defaults and say which runs fail.
 
     .venv/bin/python bench/corpus.py [--quick] [--orders 2,3,4,5,6] [--out DIR]
-                                     [--only SUBSTR ...] [--report-only] [--timeout S]
+                                     [--only SUBSTR ...] [--report-only] [--timeout S] [--resume]
 
 Generates the corpus into DIR/meshes with scripts/gen_corpus.py (unless
 DIR/meshes/manifest.json is already there for the same --quick), runs
@@ -17,7 +17,10 @@ reads each JSON report, and prints a table
 that was handed back, or `error: <hocurve's message>` when it refused to
 return a mesh, e.g. at the limit of adaptive stepping), then the
 distribution of min Q3 over all runs (quantiles, histogram), and a summary.
-The table also goes to DIR/results.csv and DIR/results.json.
+The table also goes to DIR/results.csv and DIR/results.json; each run's
+result is kept in DIR/runs/CASE-pP.result.json (with its hocurve report
+CASE-pP.json) and --resume reuses them. Runs go order by order (p = 2 for
+every case first), so an interrupted long run has the cheap orders complete.
 
 Exit status: 1 if any run has certified-invalid or uncertain cells or an
 error, 0 otherwise; --report-only always exits 0.
@@ -200,7 +203,9 @@ def main(argv=None):
     ap.add_argument("--out", default=str(REPO / "bench" / "out" / "corpus"), help="output directory")
     ap.add_argument("--only", nargs="*", help="only cases whose name contains one of these")
     ap.add_argument("--report-only", action="store_true", help="exit 0 even if runs fail")
-    ap.add_argument("--timeout", type=float, default=900, help="seconds per run (default 900)")
+    ap.add_argument("--timeout", type=float, default=1800, help="seconds per run (default 1800)")
+    ap.add_argument("--resume", action="store_true",
+                    help="reuse the results of runs already done in DIR/runs (an interrupted long run)")
     a = ap.parse_args(argv)
     orders = [int(x) for x in a.orders.split(",") if x.strip()]
     binary = hocurve_bin()
@@ -211,12 +216,21 @@ def main(argv=None):
     manifest = ensure_corpus(out / "meshes", a.quick, a.only)
     cases = [c for c in manifest["cases"] if (c["quick"] or not a.quick)
              and (not a.only or any(o in c["name"] for o in a.only))]
-    results = []
-    for c in cases:
-        for p in orders:
-            r = run_case(c, p, out / "meshes", out / "runs", timeout=a.timeout, binary=binary)
-            results.append(r)
+    # Order by order: the low orders of every case (cheap) come first.
+    done = {}
+    runs = out / "runs"
+    runs.mkdir(parents=True, exist_ok=True)
+    for p in orders:
+        for c in cases:
+            saved = runs / f"{c['name']}-p{p}.result.json"
+            if a.resume and saved.exists():
+                r = json.loads(saved.read_text())
+            else:
+                r = run_case(c, p, out / "meshes", runs, timeout=a.timeout, binary=binary)
+                saved.write_text(json.dumps(r) + "\n")
+            done[(c["name"], p)] = r
             print(f"corpus: {c['name']} p={p}: {r['status']} ({r['time_s']:.1f} s)", file=sys.stderr, flush=True)
+    results = [done[(c["name"], p)] for c in cases for p in orders]
     if not results:
         print("corpus: no cases selected", file=sys.stderr)
         return 2
