@@ -150,6 +150,35 @@ def table(results):
     return "\n".join(lines)
 
 
+def markdown(results):
+    """A case x order matrix for docs/validation.md: min Q3 / certified min Q3, or the failure."""
+    orders = sorted({r["p"] for r in results})
+    by = {(r["case"], r["p"]): r for r in results}
+    cases = list(dict.fromkeys(r["case"] for r in results))
+    lines = ["| case | generator | tets | " + " | ".join(f"p = {p}" for p in orders) + " |",
+             "|---|---|---:|" + "---|" * len(orders)]
+    for c in cases:
+        first = next(r for r in results if r["case"] == c)
+        cells = []
+        for p in orders:
+            r = by.get((c, p))
+            if r is None:
+                cells.append("")
+            elif r["status"] == "ok":
+                cells.append(f"{r['min_q3']:.2f} / {r['certified_min_q3']:.2f}")
+            elif r["status"].startswith("invalid"):
+                cells.append(f"**{r['status']}**")
+            else:
+                msg = r["error"] or ""
+                if msg.startswith("invalid element: cell") and " in increment " in msg:
+                    where = msg.split(" in increment ")[1].split(" ")[0]
+                    cells.append(f"**fails** (incr. {where})")
+                else:
+                    cells.append(f"**error**: {short_error(msg)}")
+        lines.append(f"| `{c}` | {first['generator']} | {first['cells']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def quantile(xs, q):
     xs = sorted(xs)
     if not xs:
@@ -204,6 +233,7 @@ def main(argv=None):
     ap.add_argument("--only", nargs="*", help="only cases whose name contains one of these")
     ap.add_argument("--report-only", action="store_true", help="exit 0 even if runs fail")
     ap.add_argument("--timeout", type=float, default=1800, help="seconds per run (default 1800)")
+    ap.add_argument("--markdown", action="store_true", help="also print the case x order matrix in Markdown")
     ap.add_argument("--resume", action="store_true",
                     help="reuse the results of runs already done in DIR/runs (an interrupted long run)")
     a = ap.parse_args(argv)
@@ -248,6 +278,9 @@ def main(argv=None):
             print(f"  {e}")
         print()
     print(summary(results))
+    if a.markdown:
+        print()
+        print(markdown(results))
     if a.report_only:
         return 0
     return 1 if any(failed(r) for r in results) else 0
