@@ -45,7 +45,8 @@ Generators:
           planes) by closed-form closest point.
 
 Every generator is deterministic (gmsh: one thread, Mesh.RandomSeed 1;
-TetGen is deterministic; CGAL: its default random generator, fixed seed), so
+TetGen is deterministic; CGAL: the domain's CGAL::Random(0), and perturbation
+and exudation without Mesh_3's default time limit, see corpus_cgal.cpp), so
 the corpus is the same on every machine with the same generator versions.
 """
 import argparse
@@ -486,13 +487,14 @@ def box_surface(n, h):
 # TetGen
 
 def tetgen_version():
+    """TetGen's package version (the binary has no version switch)."""
     try:
-        r = subprocess.run(["tetgen", "-h"], capture_output=True, text=True, timeout=30)
-        for line in (r.stdout + r.stderr).splitlines():
-            if "version" in line.lower():
-                return line.strip()
+        r = subprocess.run(["dpkg-query", "-W", "-f=${Version}", "tetgen"], capture_output=True, text=True,
+                           timeout=30)
+        if r.returncode == 0 and r.stdout.strip():
+            return "tetgen " + r.stdout.strip()
     except (OSError, subprocess.SubprocessError):
-        return None
+        pass
     return "tetgen"
 
 
