@@ -513,6 +513,8 @@ def run_tetgen(coords, tris, hole, s, work, name):
     Path(base + ".smesh").write_text("".join(out))
     vol = 0.12 * s["h"] ** 3  # a regular tet of edge h
     switches = f"-pq{s.get('q', 1.4)}a{vol:.6g}YQ"
+    if shutil.which("tetgen") is None:
+        raise RuntimeError("the `tetgen` binary is not on PATH: install Debian's tetgen (scripts/apt_deps.sh)")
     r = subprocess.run(["tetgen", switches, base + ".smesh"], capture_output=True, text=True, timeout=600)
     res = base + ".1"
     if r.returncode != 0 or not Path(res + ".ele").exists():
