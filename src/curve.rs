@@ -19,8 +19,8 @@ use crate::quadrature::simplex_rule;
 use crate::quality::{self, ElementQuality, MeshQuality};
 use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
 use crate::solver::{
-    DirectOrdering, DirectSolver, ExternalAdapter, IterativeParams, IterativeSolver, LinearSolver, SolverChoice,
-    SymmetricCsc, AUTO_DIRECT_MAX_DOFS,
+    DirectOrdering, DirectSolver, ExternalAdapter, FallbackReason, IterativeParams, IterativeSolver, LinearSolver,
+    SolveStats, SolvedBy, SolverChoice, SymmetricCsc, AUTO_DIRECT_MAX_DOFS,
 };
 use crate::{Error, Result};
 
@@ -219,8 +219,15 @@ pub struct CurveReport {
     pub newton_history: Vec<Vec<f64>>,
     /// The linear solver that ran ("direct", ...).
     pub linear_solver: &'static str,
-    /// Krylov iterations of each linear solve (zeros for a direct solver).
+    /// Krylov iterations of each linear solve (zeros for a direct solver;
+    /// with those of an attempt that fell back).
     pub solver_iterations: Vec<usize>,
+    /// The solver that produced each solve's solution.
+    pub solver_per_solve: Vec<SolvedBy>,
+    /// Per solve, why the first choice of solver did not produce it.
+    pub fallback_per_solve: Vec<Option<FallbackReason>>,
+    /// Solves that fell back (restarted PCG, direct after PCG, LU after Cholesky).
+    pub fallbacks: usize,
 }
 
 impl CurveReport {
@@ -408,6 +415,9 @@ pub fn curve(
         newton_history: solved.newton_history,
         linear_solver: solved.linear_solver,
         solver_iterations: solved.solver_iterations,
+        solver_per_solve: solved.solver_per_solve,
+        fallback_per_solve: solved.fallback_per_solve,
+        fallbacks: solved.fallbacks,
     };
     Ok(CurvedMesh { mesh, straight, cell_quality, report })
 }
@@ -505,6 +515,12 @@ pub struct IncrementsReport {
     pub linear_solver: &'static str,
     /// Krylov iterations of each linear solve (rejected increments included).
     pub solver_iterations: Vec<usize>,
+    /// The solver that produced each solve's solution.
+    pub solver_per_solve: Vec<SolvedBy>,
+    /// Per solve, why the first choice of solver did not produce it.
+    pub fallback_per_solve: Vec<Option<FallbackReason>>,
+    /// Solves that fell back.
+    pub fallbacks: usize,
     /// Load fraction reached by each accepted increment (the last is 1); its
     /// length is the number of increments taken.
     pub load_fractions: Vec<f64>,
@@ -516,6 +532,14 @@ pub struct IncrementsReport {
 }
 
 impl IncrementsReport {
+    /// Record what one linear solve reports.
+    fn record_solve(&mut self, stats: &SolveStats) {
+        self.solver_iterations.push(stats.iterations);
+        self.solver_per_solve.push(stats.solved_by);
+        self.fallback_per_solve.push(stats.fallback);
+        self.fallbacks += usize::from(stats.fallback.is_some());
+    }
+
     /// Size of each accepted increment, as a fraction of the whole load.
     pub fn steps(&self) -> Vec<f64> {
         let mut prev = 0.0;
@@ -816,7 +840,7 @@ impl<K: ElementKernel> IncrementContext<'_, K> {
         let t = Instant::now();
         let n = dofs.n_system;
         let stats = solver.solve(self.pattern, &system.values, &system.rhs, &mut u[..n]).map_err(Failure::Fatal)?;
-        out.solver_iterations.push(stats.iterations);
+        out.record_solve(&stats);
         system.recover_interior(mesh, dofs, step, u);
         timings.solve += t.elapsed().as_secs_f64();
         for (dof, x) in mesh.coords.iter_mut().enumerate() {
@@ -855,7 +879,7 @@ impl<K: ElementKernel> IncrementContext<'_, K> {
                 let n = dofs.n_system;
                 let stats =
                     solver.solve(self.pattern, &system.values, &system.rhs, &mut du[..n]).map_err(Failure::Fatal)?;
-                out.solver_iterations.push(stats.iterations);
+                out.record_solve(&stats);
                 system.recover_interior(mesh, dofs, &zero, du);
                 timings.solve += t.elapsed().as_secs_f64();
                 for (dof, x) in mesh.coords.iter_mut().enumerate() {
