@@ -120,6 +120,20 @@ static double *curve(const FixtureMesh *m, int p, Cg *cg, int condense, size_t *
   HocQuality q;
   CHECK_OK(mesh, hoc_mesh_quality(mesh, &q));
   CHECK(q.n_invalid == 0, "p=%d (%s): %zu invalid cells", p, cg ? "external" : "built-in", q.n_invalid);
+  /* Each solve is reported, with the solver that produced it: no fallback here. */
+  size_t n_solves = 0, n_fallbacks = 0;
+  CHECK_OK(mesh, hoc_mesh_solve_count(mesh, &n_solves, &n_fallbacks));
+  CHECK(n_solves == INCREMENTS && n_fallbacks == 0, "p=%d: %zu solves, %zu fallbacks", p, n_solves, n_fallbacks);
+  HocSolvedBy by[INCREMENTS];
+  HocFallbackReason why[INCREMENTS];
+  CHECK_OK(mesh, hoc_mesh_get_solves(mesh, n_solves, by, why, NULL));
+  for (size_t i = 0; i < n_solves; ++i) {
+    const char *name = hoc_solved_by_string(by[i]);
+    CHECK(cg ? by[i] == HOC_SOLVED_BY_EXTERNAL && strcmp(name, "external") == 0
+             : by[i] == HOC_SOLVED_BY_DIRECT || by[i] == HOC_SOLVED_BY_PCG,
+          "p=%d: solve %zu by %s", p, i, name);
+    CHECK(why[i] == HOC_FALLBACK_NONE, "p=%d: solve %zu fell back (%s)", p, i, hoc_fallback_reason_string(why[i]));
+  }
   CHECK_OK(mesh, hoc_mesh_node_count(mesh, n_nodes));
   size_t npc = 0;
   CHECK_OK(mesh, hoc_mesh_cell_count(mesh, n_cells, &npc));

@@ -56,6 +56,22 @@ module hocurve
   integer(c_int), parameter, public :: HOC_STEP_BACK_CERTIFIED_INVALID = 1
   integer(c_int), parameter, public :: HOC_STEP_BACK_NEWTON_FAILED = 2
   integer(c_int), parameter, public :: HOC_STEP_BACK_RESTARTED = 3
+  ! HocSolvedBy
+  integer(c_int), parameter, public :: HOC_SOLVED_BY_PCG = 0
+  integer(c_int), parameter, public :: HOC_SOLVED_BY_PCG_RESTARTED = 1
+  integer(c_int), parameter, public :: HOC_SOLVED_BY_DIRECT = 2
+  integer(c_int), parameter, public :: HOC_SOLVED_BY_DIRECT_LU = 3
+  integer(c_int), parameter, public :: HOC_SOLVED_BY_EXTERNAL = 4
+  ! HocFallbackReason
+  integer(c_int), parameter, public :: HOC_FALLBACK_NONE = 0
+  integer(c_int), parameter, public :: HOC_FALLBACK_PRECONDITIONER_NOT_POSITIVE = 1
+  integer(c_int), parameter, public :: HOC_FALLBACK_STAGNATION = 2
+  integer(c_int), parameter, public :: HOC_FALLBACK_EIGENVALUE_UNDERESTIMATED = 3
+  integer(c_int), parameter, public :: HOC_FALLBACK_NOT_CONVERGED = 4
+  integer(c_int), parameter, public :: HOC_FALLBACK_NON_FINITE = 5
+  integer(c_int), parameter, public :: HOC_FALLBACK_MATRIX_NOT_POSITIVE = 6
+  integer(c_int), parameter, public :: HOC_FALLBACK_PRECONDITIONER_SETUP = 7
+  integer(c_int), parameter, public :: HOC_FALLBACK_CHOLESKY_FAILED = 8
   ! HocNodeOrdering
   integer(c_int), parameter, public :: HOC_ORDERING_NATIVE = 0
   integer(c_int), parameter, public :: HOC_ORDERING_GMSH = 1
@@ -337,6 +353,25 @@ module hocurve
       integer(c_int) :: status
     end function hoc_mesh_get_step_backs
 
+    function hoc_mesh_solve_count(mesh, n_solves, n_fallbacks) &
+        bind(C, name="hoc_mesh_solve_count") result(status)
+      import :: c_int, c_ptr, c_size_t
+      type(c_ptr), value :: mesh
+      integer(c_size_t), intent(out) :: n_solves, n_fallbacks
+      integer(c_int) :: status
+    end function hoc_mesh_solve_count
+
+    !> solved_by (HOC_SOLVED_BY_*), fallbacks (HOC_FALLBACK_*), iterations (size_t):
+    !> n_solves each, or c_null_ptr
+    function hoc_mesh_get_solves(mesh, n_solves, solved_by, fallbacks, iterations) &
+        bind(C, name="hoc_mesh_get_solves") result(status)
+      import :: c_int, c_ptr, c_size_t
+      type(c_ptr), value :: mesh
+      integer(c_size_t), value :: n_solves
+      type(c_ptr), value :: solved_by, fallbacks, iterations
+      integer(c_int) :: status
+    end function hoc_mesh_get_solves
+
     function hoc_mesh_run_increments(mesh, increments) &
         bind(C, name="hoc_mesh_run_increments") result(status)
       import :: c_int, c_ptr
@@ -421,6 +456,18 @@ module hocurve
       type(c_ptr) :: message
     end function hoc_status_string
 
+    function hoc_solved_by_string(solved_by) bind(C, name="hoc_solved_by_string") result(name)
+      import :: c_ptr, c_int
+      integer(c_int), value :: solved_by
+      type(c_ptr) :: name
+    end function hoc_solved_by_string
+
+    function hoc_fallback_reason_string(reason) bind(C, name="hoc_fallback_reason_string") result(name)
+      import :: c_ptr, c_int
+      integer(c_int), value :: reason
+      type(c_ptr) :: name
+    end function hoc_fallback_reason_string
+
     function hoc_version() bind(C, name="hoc_version") result(version)
       import :: c_ptr
       type(c_ptr) :: version
@@ -441,10 +488,10 @@ module hocurve
             hoc_mesh_set_adaptive_stepping, hoc_mesh_set_static_condensation, hoc_mesh_run_increments, &
             hoc_mesh_set_optimize, hoc_mesh_optimization, &
             hoc_mesh_increment_count, &
-            hoc_mesh_get_load_fractions, hoc_mesh_get_step_backs, &
+            hoc_mesh_get_load_fractions, hoc_mesh_get_step_backs, hoc_mesh_solve_count, hoc_mesh_get_solves, &
             hoc_mesh_quality, hoc_mesh_cell_quality, hoc_mesh_node_count, hoc_mesh_cell_count, &
             hoc_mesh_get_nodes, hoc_mesh_get_cells, hoc_mesh_write, hoc_mesh_last_error, &
-            hoc_status_string, hoc_version, hoc_string
+            hoc_status_string, hoc_solved_by_string, hoc_fallback_reason_string, hoc_version, hoc_string
 
 contains
 

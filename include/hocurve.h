@@ -236,6 +236,17 @@ typedef struct {
 typedef int HocStepBackReason;
 
 /**
+ * Which solver produced the solution of a linear solve (hoc_mesh_get_solves).
+ */
+typedef int HocSolvedBy;
+
+/**
+ * Why a linear solve fell back from its first choice of solver
+ * (hoc_mesh_get_solves).
+ */
+typedef int HocFallbackReason;
+
+/**
  * Local node order of the returned connectivity.
  */
 typedef int HocNodeOrdering;
@@ -399,6 +410,78 @@ typedef int HocNodeOrdering;
  * the run restarted from load 0 with the certified check after every increment.
  */
 #define HOC_STEP_BACK_RESTARTED 3
+
+/**
+ * Preconditioned conjugate gradients (the built-in iterative solver).
+ */
+#define HOC_SOLVED_BY_PCG 0
+
+/**
+ * PCG restarted after a breakdown, with the preconditioner rebuilt in its
+ * safe mode (double precision, Gershgorin bound of the eigenvalues).
+ */
+#define HOC_SOLVED_BY_PCG_RESTARTED 1
+
+/**
+ * Sparse Cholesky.
+ */
+#define HOC_SOLVED_BY_DIRECT 2
+
+/**
+ * Sparse LU (the matrix was not positive definite).
+ */
+#define HOC_SOLVED_BY_DIRECT_LU 3
+
+/**
+ * The host's solver (hoc_mesh_set_linear_solver).
+ */
+#define HOC_SOLVED_BY_EXTERNAL 4
+
+/**
+ * No fallback.
+ */
+#define HOC_FALLBACK_NONE 0
+
+/**
+ * PCG found rᵀz ≤ 0: the preconditioner was not positive definite.
+ */
+#define HOC_FALLBACK_PRECONDITIONER_NOT_POSITIVE 1
+
+/**
+ * PCG's residual stagnated.
+ */
+#define HOC_FALLBACK_STAGNATION 2
+
+/**
+ * PCG was slow and a fresh eigenvalue estimate exceeded the smoother's.
+ */
+#define HOC_FALLBACK_EIGENVALUE_UNDERESTIMATED 3
+
+/**
+ * PCG reached its iteration limit.
+ */
+#define HOC_FALLBACK_NOT_CONVERGED 4
+
+/**
+ * PCG's residual became infinite or NaN.
+ */
+#define HOC_FALLBACK_NON_FINITE 5
+
+/**
+ * The matrix is not positive definite (PCG found pᵀAp ≤ 0 or a diagonal
+ * block that is not).
+ */
+#define HOC_FALLBACK_MATRIX_NOT_POSITIVE 6
+
+/**
+ * The preconditioner could not be built.
+ */
+#define HOC_FALLBACK_PRECONDITIONER_SETUP 7
+
+/**
+ * Sparse Cholesky failed (not positive definite): sparse LU solved it.
+ */
+#define HOC_FALLBACK_CHOLESKY_FAILED 8
 
 #ifdef __cplusplus
 extern "C" {
@@ -723,6 +806,52 @@ HocStatus hoc_mesh_get_load_fractions(const HocMesh *mesh, size_t n_taken, doubl
  * @return HOC_OK or HOC_ERROR_BUFFER_SIZE
  */
 HocStatus hoc_mesh_get_step_backs(const HocMesh *mesh, size_t n_step_backs, double *loads, double *steps, HocStepBackReason *reasons, int64_t *cells);
+
+/**
+ * Linear solves of the last successful run (rejected increments and Newton
+ * iterations included), and how many of them fell back from the first
+ * choice of solver (PCG restarted with a safe preconditioner, the direct
+ * solver after PCG, LU after Cholesky). Both 0 before a run.
+ *
+ * @param[in] mesh the handle
+ * @param[out] n_solves linear solves
+ * @param[out] n_fallbacks solves that fell back
+ * @return HOC_OK or HOC_ERROR_NULL_POINTER
+ */
+HocStatus hoc_mesh_solve_count(const HocMesh *mesh, size_t *n_solves, size_t *n_fallbacks);
+
+/**
+ * The linear solves of the last run, in order: the solver that produced
+ * each solution, why the first choice did not (HOC_FALLBACK_NONE when it
+ * did) and the Krylov iterations run (0 for a direct solve; those of a
+ * failed attempt included). Any output may be NULL.
+ *
+ * @param[in] mesh the handle
+ * @param[in] n_solves must equal the count of hoc_mesh_solve_count
+ * @param[out] solved_by `n_solves` HOC_SOLVED_BY_* values, or NULL
+ * @param[out] fallbacks `n_solves` HOC_FALLBACK_* values, or NULL
+ * @param[out] iterations `n_solves` counts, or NULL
+ * @return HOC_OK or HOC_ERROR_BUFFER_SIZE
+ */
+HocStatus hoc_mesh_get_solves(const HocMesh *mesh, size_t n_solves, HocSolvedBy *solved_by, HocFallbackReason *fallbacks, size_t *iterations);
+
+/**
+ * The name of a HocSolvedBy value ("pcg", "pcg-restarted", "direct",
+ * "direct-lu", "external"; "unknown" for another value).
+ *
+ * @param[in] solved_by a HOC_SOLVED_BY_* value
+ * @return a NUL-terminated static string
+ */
+const char *hoc_solved_by_string(HocSolvedBy solved_by);
+
+/**
+ * The name of a HocFallbackReason value ("none", "stagnation", ...; the
+ * names of the CLI's JSON report; "unknown" for another value).
+ *
+ * @param[in] reason a HOC_FALLBACK_* value
+ * @return a NUL-terminated static string
+ */
+const char *hoc_fallback_reason_string(HocFallbackReason reason);
 
 /**
  * Number of nodes of the current (order-p) mesh.

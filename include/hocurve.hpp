@@ -301,6 +301,34 @@ class Mesh {
     check(hoc_mesh_get_load_fractions(mesh_, taken, l.data()), mesh_);
     return l;
   }
+  /** One linear solve of the last run: the solver that produced the solution
+   *  (HOC_SOLVED_BY_*), why the first choice did not (HOC_FALLBACK_*, NONE if
+   *  it did) and the Krylov iterations run. */
+  struct Solve {
+    HocSolvedBy solved_by;
+    HocFallbackReason fallback;
+    std::size_t iterations;
+    const char *solver_name() const { return hoc_solved_by_string(solved_by); }
+    const char *fallback_name() const { return hoc_fallback_reason_string(fallback); }
+  };
+  /** The linear solves of the last run, in order. */
+  std::vector<Solve> solves() const {
+    std::size_t n = 0, fallbacks = 0;
+    check(hoc_mesh_solve_count(mesh_, &n, &fallbacks), mesh_);
+    std::vector<HocSolvedBy> by(n);
+    std::vector<HocFallbackReason> why(n);
+    std::vector<std::size_t> its(n);
+    check(hoc_mesh_get_solves(mesh_, n, by.data(), why.data(), its.data()), mesh_);
+    std::vector<Solve> s(n);
+    for (std::size_t i = 0; i < n; ++i) s[i] = Solve{by[i], why[i], its[i]};
+    return s;
+  }
+  /** Linear solves of the last run that fell back from the first choice of solver. */
+  std::size_t solver_fallbacks() const {
+    std::size_t n = 0, fallbacks = 0;
+    check(hoc_mesh_solve_count(mesh_, &n, &fallbacks), mesh_);
+    return fallbacks;
+  }
   /** node_count()*dim coordinates, interleaved. */
   std::vector<double> nodes() const {
     std::size_t n = node_count();

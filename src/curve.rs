@@ -23,8 +23,8 @@ use crate::quadrature::simplex_rule;
 use crate::quality::{self, ElementQuality, MeshQuality};
 use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
 use crate::solver::{
-    DirectOrdering, DirectSolver, ExternalAdapter, IterativeParams, IterativeSolver, LinearSolver, SolverChoice,
-    SymmetricCsc, AUTO_DIRECT_MAX_DOFS,
+    DirectOrdering, DirectSolver, ExternalAdapter, FallbackReason, IterativeParams, IterativeSolver, LinearSolver,
+    SolveStats, SolvedBy, SolverChoice, SymmetricCsc, AUTO_DIRECT_MAX_DOFS,
 };
 use crate::{Error, Result};
 
@@ -246,8 +246,15 @@ pub struct CurveReport {
     pub newton_history: Vec<Vec<f64>>,
     /// The linear solver that ran ("direct", ...).
     pub linear_solver: &'static str,
-    /// Krylov iterations of each linear solve (zeros for a direct solver).
+    /// Krylov iterations of each linear solve (zeros for a direct solver;
+    /// with those of an attempt that fell back).
     pub solver_iterations: Vec<usize>,
+    /// The solver that produced each solve's solution.
+    pub solver_per_solve: Vec<SolvedBy>,
+    /// Per solve, why the first choice of solver did not produce it.
+    pub fallback_per_solve: Vec<Option<FallbackReason>>,
+    /// Solves that fell back (restarted PCG, direct after PCG, LU after Cholesky).
+    pub fallbacks: usize,
     /// Where the elastic stage stopped short of the full load, if it did:
     /// adaptive stepping could not keep a cell valid, so the remaining load
     /// was applied in one linear solve on the straight mesh and the
@@ -418,19 +425,24 @@ pub fn curve(
         material,
     };
     let finish_stepping = Stepping { increments: 1, adaptive: false, finish: false, ..stepping.clone() };
-    let solved = if linear_iso {
+    let mut solved = if linear_iso {
         solve_increments(&mut mesh, &linear_kernel, &ubar, stepping, &mut timings, &mut tick)?
     } else {
         let kernel = MaterialKernel::new(&mesh, &straight, &cache, model.as_ref(), mode, &fibres);
         solve_increments(&mut mesh, &kernel, &ubar, stepping, &mut timings, &mut tick)?
     };
-    if let Some(stop) = &solved.stopped {
+    if let Some(stop) = solved.stopped.clone() {
         // The remaining load in one linear elastic solve on the straight
         // mesh, which is always valid: the boundary reaches its target and
         // the optimisation stage untangles what this leaves inverted.
         let rest: Vec<f64> = ubar.iter().map(|u| u * (1.0 - stop.load)).collect();
         let mut reference = HighOrderMesh { coords: straight.clone(), ..mesh.clone() };
-        solve_increments(&mut reference, &linear_kernel, &rest, finish_stepping, &mut timings, &mut tick)?;
+        let finish = solve_increments(&mut reference, &linear_kernel, &rest, finish_stepping, &mut timings, &mut tick)?;
+        // Its solve is reported with the others.
+        solved.solver_iterations.extend(finish.solver_iterations);
+        solved.solver_per_solve.extend(finish.solver_per_solve);
+        solved.fallback_per_solve.extend(finish.fallback_per_solve);
+        solved.fallbacks += finish.fallbacks;
         for ((x, r), s) in mesh.coords.iter_mut().zip(&reference.coords).zip(&straight) {
             *x += r - s;
         }
@@ -507,6 +519,9 @@ pub fn curve(
         newton_history: solved.newton_history,
         linear_solver: solved.linear_solver,
         solver_iterations: solved.solver_iterations,
+        solver_per_solve: solved.solver_per_solve,
+        fallback_per_solve: solved.fallback_per_solve,
+        fallbacks: solved.fallbacks,
         elastic_stop: solved.stopped,
         optimization,
     };
@@ -610,6 +625,12 @@ pub struct IncrementsReport {
     pub linear_solver: &'static str,
     /// Krylov iterations of each linear solve (rejected increments included).
     pub solver_iterations: Vec<usize>,
+    /// The solver that produced each solve's solution.
+    pub solver_per_solve: Vec<SolvedBy>,
+    /// Per solve, why the first choice of solver did not produce it.
+    pub fallback_per_solve: Vec<Option<FallbackReason>>,
+    /// Solves that fell back.
+    pub fallbacks: usize,
     /// Load fraction reached by each accepted increment (the last is 1); its
     /// length is the number of increments taken.
     pub load_fractions: Vec<f64>,
@@ -624,6 +645,14 @@ pub struct IncrementsReport {
 }
 
 impl IncrementsReport {
+    /// Record what one linear solve reports.
+    fn record_solve(&mut self, stats: &SolveStats) {
+        self.solver_iterations.push(stats.iterations);
+        self.solver_per_solve.push(stats.solved_by);
+        self.fallback_per_solve.push(stats.fallback);
+        self.fallbacks += usize::from(stats.fallback.is_some());
+    }
+
     /// Size of each accepted increment, as a fraction of the whole load.
     pub fn steps(&self) -> Vec<f64> {
         let mut prev = 0.0;
@@ -935,7 +964,7 @@ impl<K: ElementKernel> IncrementContext<'_, K> {
         let t = Instant::now();
         let n = dofs.n_system;
         let stats = solver.solve(self.pattern, &system.values, &system.rhs, &mut u[..n]).map_err(Failure::Fatal)?;
-        out.solver_iterations.push(stats.iterations);
+        out.record_solve(&stats);
         system.recover_interior(mesh, dofs, step, u);
         timings.solve += t.elapsed().as_secs_f64();
         for (dof, x) in mesh.coords.iter_mut().enumerate() {
@@ -974,7 +1003,7 @@ impl<K: ElementKernel> IncrementContext<'_, K> {
                 let n = dofs.n_system;
                 let stats =
                     solver.solve(self.pattern, &system.values, &system.rhs, &mut du[..n]).map_err(Failure::Fatal)?;
-                out.solver_iterations.push(stats.iterations);
+                out.record_solve(&stats);
                 system.recover_interior(mesh, dofs, &zero, du);
                 timings.solve += t.elapsed().as_secs_f64();
                 for (dof, x) in mesh.coords.iter_mut().enumerate() {

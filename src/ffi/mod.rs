@@ -24,7 +24,7 @@ use crate::material::MaterialModel;
 use crate::mesh::LinearMesh;
 use crate::reference::NodeSpacing;
 use crate::session::{NodeOrdering, Session};
-use crate::solver::{CsrView, ExternalSolver, SystemSolver};
+use crate::solver::{CsrView, ExternalSolver, FallbackReason, SolvedBy, SystemSolver};
 use crate::Error;
 
 /// Status code returned by every function (0 = success).
@@ -107,6 +107,43 @@ pub const HOC_STEP_BACK_NEWTON_FAILED: HocStepBackReason = 2;
 /// An inversion between the sample points of an earlier increment was found:
 /// the run restarted from load 0 with the certified check after every increment.
 pub const HOC_STEP_BACK_RESTARTED: HocStepBackReason = 3;
+
+/// Which solver produced the solution of a linear solve (hoc_mesh_get_solves).
+pub type HocSolvedBy = c_int;
+/// Preconditioned conjugate gradients (the built-in iterative solver).
+pub const HOC_SOLVED_BY_PCG: HocSolvedBy = 0;
+/// PCG restarted after a breakdown, with the preconditioner rebuilt in its
+/// safe mode (double precision, Gershgorin bound of the eigenvalues).
+pub const HOC_SOLVED_BY_PCG_RESTARTED: HocSolvedBy = 1;
+/// Sparse Cholesky.
+pub const HOC_SOLVED_BY_DIRECT: HocSolvedBy = 2;
+/// Sparse LU (the matrix was not positive definite).
+pub const HOC_SOLVED_BY_DIRECT_LU: HocSolvedBy = 3;
+/// The host's solver (hoc_mesh_set_linear_solver).
+pub const HOC_SOLVED_BY_EXTERNAL: HocSolvedBy = 4;
+
+/// Why a linear solve fell back from its first choice of solver
+/// (hoc_mesh_get_solves).
+pub type HocFallbackReason = c_int;
+/// No fallback.
+pub const HOC_FALLBACK_NONE: HocFallbackReason = 0;
+/// PCG found rᵀz ≤ 0: the preconditioner was not positive definite.
+pub const HOC_FALLBACK_PRECONDITIONER_NOT_POSITIVE: HocFallbackReason = 1;
+/// PCG's residual stagnated.
+pub const HOC_FALLBACK_STAGNATION: HocFallbackReason = 2;
+/// PCG was slow and a fresh eigenvalue estimate exceeded the smoother's.
+pub const HOC_FALLBACK_EIGENVALUE_UNDERESTIMATED: HocFallbackReason = 3;
+/// PCG reached its iteration limit.
+pub const HOC_FALLBACK_NOT_CONVERGED: HocFallbackReason = 4;
+/// PCG's residual became infinite or NaN.
+pub const HOC_FALLBACK_NON_FINITE: HocFallbackReason = 5;
+/// The matrix is not positive definite (PCG found pᵀAp ≤ 0 or a diagonal
+/// block that is not).
+pub const HOC_FALLBACK_MATRIX_NOT_POSITIVE: HocFallbackReason = 6;
+/// The preconditioner could not be built.
+pub const HOC_FALLBACK_PRECONDITIONER_SETUP: HocFallbackReason = 7;
+/// Sparse Cholesky failed (not positive definite): sparse LU solved it.
+pub const HOC_FALLBACK_CHOLESKY_FAILED: HocFallbackReason = 8;
 
 /// Mesh quality (paper section 5): minima over the cells, mean Q3, and the
 /// number of cells with a non-positive Jacobian at a sample point.
@@ -1184,6 +1221,141 @@ pub unsafe extern "C" fn hoc_mesh_get_step_backs(
         }
         Ok(())
     })
+}
+
+/// Linear solves of the last successful run (rejected increments and Newton
+/// iterations included), and how many of them fell back from the first
+/// choice of solver (PCG restarted with a safe preconditioner, the direct
+/// solver after PCG, LU after Cholesky). Both 0 before a run.
+///
+/// @param[in] mesh the handle
+/// @param[out] n_solves linear solves
+/// @param[out] n_fallbacks solves that fell back
+/// @return HOC_OK or HOC_ERROR_NULL_POINTER
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_solve_count(
+    mesh: *const HocMesh,
+    n_solves: *mut usize,
+    n_fallbacks: *mut usize,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle(mesh)?;
+        let (solves, fallbacks) = h.session.report().map_or((0, 0), |r| (r.solver_per_solve.len(), r.fallbacks));
+        *n_solves.as_mut().ok_or_else(|| null("n_solves"))? = solves;
+        *n_fallbacks.as_mut().ok_or_else(|| null("n_fallbacks"))? = fallbacks;
+        Ok(())
+    })
+}
+
+/// The linear solves of the last run, in order: the solver that produced
+/// each solution, why the first choice did not (HOC_FALLBACK_NONE when it
+/// did) and the Krylov iterations run (0 for a direct solve; those of a
+/// failed attempt included). Any output may be NULL.
+///
+/// @param[in] mesh the handle
+/// @param[in] n_solves must equal the count of hoc_mesh_solve_count
+/// @param[out] solved_by `n_solves` HOC_SOLVED_BY_* values, or NULL
+/// @param[out] fallbacks `n_solves` HOC_FALLBACK_* values, or NULL
+/// @param[out] iterations `n_solves` counts, or NULL
+/// @return HOC_OK or HOC_ERROR_BUFFER_SIZE
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_get_solves(
+    mesh: *const HocMesh,
+    n_solves: usize,
+    solved_by: *mut HocSolvedBy,
+    fallbacks: *mut HocFallbackReason,
+    iterations: *mut usize,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle(mesh)?;
+        let Some(r) = h.session.report().filter(|r| !r.solver_per_solve.is_empty()) else {
+            return match n_solves {
+                0 => Ok(()),
+                _ => Err((HOC_ERROR_BUFFER_SIZE, format!("n_solves = {n_solves}, but no solve has run"))),
+            };
+        };
+        if n_solves != r.solver_per_solve.len() {
+            return Err((
+                HOC_ERROR_BUFFER_SIZE,
+                format!("n_solves = {n_solves}, but the run made {} linear solves", r.solver_per_solve.len()),
+            ));
+        }
+        for i in 0..n_solves {
+            if !solved_by.is_null() {
+                *solved_by.add(i) = solved_by_code(r.solver_per_solve[i]);
+            }
+            if !fallbacks.is_null() {
+                *fallbacks.add(i) = r.fallback_per_solve[i].map_or(HOC_FALLBACK_NONE, fallback_code);
+            }
+            if !iterations.is_null() {
+                *iterations.add(i) = r.solver_iterations[i];
+            }
+        }
+        Ok(())
+    })
+}
+
+fn solved_by_code(s: SolvedBy) -> HocSolvedBy {
+    match s {
+        SolvedBy::Pcg => HOC_SOLVED_BY_PCG,
+        SolvedBy::PcgRestarted => HOC_SOLVED_BY_PCG_RESTARTED,
+        SolvedBy::Direct => HOC_SOLVED_BY_DIRECT,
+        SolvedBy::DirectLu => HOC_SOLVED_BY_DIRECT_LU,
+        SolvedBy::External => HOC_SOLVED_BY_EXTERNAL,
+    }
+}
+
+fn fallback_code(f: FallbackReason) -> HocFallbackReason {
+    match f {
+        FallbackReason::PreconditionerNotPositive => HOC_FALLBACK_PRECONDITIONER_NOT_POSITIVE,
+        FallbackReason::Stagnation => HOC_FALLBACK_STAGNATION,
+        FallbackReason::EigenvalueUnderestimated => HOC_FALLBACK_EIGENVALUE_UNDERESTIMATED,
+        FallbackReason::NotConverged => HOC_FALLBACK_NOT_CONVERGED,
+        FallbackReason::NonFinite => HOC_FALLBACK_NON_FINITE,
+        FallbackReason::MatrixNotPositive => HOC_FALLBACK_MATRIX_NOT_POSITIVE,
+        FallbackReason::PreconditionerSetup => HOC_FALLBACK_PRECONDITIONER_SETUP,
+        FallbackReason::CholeskyFailed => HOC_FALLBACK_CHOLESKY_FAILED,
+    }
+}
+
+/// The name of a HocSolvedBy value ("pcg", "pcg-restarted", "direct",
+/// "direct-lu", "external"; "unknown" for another value).
+///
+/// @param[in] solved_by a HOC_SOLVED_BY_* value
+/// @return a NUL-terminated static string
+#[no_mangle]
+pub extern "C" fn hoc_solved_by_string(solved_by: HocSolvedBy) -> *const c_char {
+    let s: &'static CStr = match solved_by {
+        HOC_SOLVED_BY_PCG => c"pcg",
+        HOC_SOLVED_BY_PCG_RESTARTED => c"pcg-restarted",
+        HOC_SOLVED_BY_DIRECT => c"direct",
+        HOC_SOLVED_BY_DIRECT_LU => c"direct-lu",
+        HOC_SOLVED_BY_EXTERNAL => c"external",
+        _ => c"unknown",
+    };
+    s.as_ptr()
+}
+
+/// The name of a HocFallbackReason value ("none", "stagnation", ...; the
+/// names of the CLI's JSON report; "unknown" for another value).
+///
+/// @param[in] reason a HOC_FALLBACK_* value
+/// @return a NUL-terminated static string
+#[no_mangle]
+pub extern "C" fn hoc_fallback_reason_string(reason: HocFallbackReason) -> *const c_char {
+    let s: &'static CStr = match reason {
+        HOC_FALLBACK_NONE => c"none",
+        HOC_FALLBACK_PRECONDITIONER_NOT_POSITIVE => c"preconditioner-not-positive-definite",
+        HOC_FALLBACK_STAGNATION => c"stagnation",
+        HOC_FALLBACK_EIGENVALUE_UNDERESTIMATED => c"eigenvalue-underestimated",
+        HOC_FALLBACK_NOT_CONVERGED => c"not-converged",
+        HOC_FALLBACK_NON_FINITE => c"non-finite-residual",
+        HOC_FALLBACK_MATRIX_NOT_POSITIVE => c"matrix-not-positive-definite",
+        HOC_FALLBACK_PRECONDITIONER_SETUP => c"preconditioner-setup-failed",
+        HOC_FALLBACK_CHOLESKY_FAILED => c"cholesky-failed",
+        _ => c"unknown",
+    };
+    s.as_ptr()
 }
 
 /// Number of nodes of the current (order-p) mesh.

@@ -21,8 +21,8 @@ pub use cholesky::{nested_dissection, node_block_size, DirectOrdering, SparseCho
 pub use external::{CsrView, ExternalAdapter, ExternalSolver, FullCsrPattern, SystemSolver};
 pub use iterative::{IterativeParams, IterativeSolver, FALLBACK_DIRECT_MAX_DOFS};
 pub use lu::try_lu_solve_in_place;
-pub use pmg::SparseRows;
 pub use pcg::PcgFailure;
+pub use pmg::SparseRows;
 
 use crate::{Error, Result};
 
@@ -66,10 +66,6 @@ impl SolvedBy {
             SolvedBy::External => "external",
         }
     }
-
-    /// All values, in the order of their C codes (`HocSolvedBy`).
-    pub const ALL: [SolvedBy; 5] =
-        [SolvedBy::Pcg, SolvedBy::PcgRestarted, SolvedBy::Direct, SolvedBy::DirectLu, SolvedBy::External];
 }
 
 /// Why a solve fell back from its first choice ([`SolveStats::fallback`]).

@@ -209,14 +209,18 @@ pub enum PcgFailure {
 impl std::fmt::Display for PcgFailure {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            PcgFailure::PreconditionerNotPositive { iteration, rz } => write!(
-                f,
-                "PCG: the preconditioner is not positive definite (rᵀz = {rz:.3e} in iteration {iteration})"
-            ),
-            PcgFailure::MatrixNotPositive { iteration, pap } => {
-                write!(f, "PCG breakdown in iteration {iteration}: pᵀAp = {pap:.3e}, the matrix is not positive definite")
+            PcgFailure::PreconditionerNotPositive { iteration, rz } => {
+                write!(f, "PCG: the preconditioner is not positive definite (rᵀz = {rz:.3e} in iteration {iteration})")
             }
-            PcgFailure::NonFinite { iteration } => write!(f, "PCG: the residual is not finite in iteration {iteration}"),
+            PcgFailure::MatrixNotPositive { iteration, pap } => {
+                write!(
+                    f,
+                    "PCG breakdown in iteration {iteration}: pᵀAp = {pap:.3e}, the matrix is not positive definite"
+                )
+            }
+            PcgFailure::NonFinite { iteration } => {
+                write!(f, "PCG: the residual is not finite in iteration {iteration}")
+            }
             PcgFailure::Stagnated { iteration, window, relative_residual } => write!(
                 f,
                 "PCG stagnated: the residual did not fall by {:.0} % in the last {window} iterations \
@@ -687,7 +691,8 @@ pub(crate) mod tests {
         let d: Vec<f64> = (0..n).map(|i| 10f64.powf(8.0 * i as f64 / (n - 1) as f64)).collect();
         let b = vec![1.0; n];
         let mut calls = 0usize;
-        let mut apply_a = |x: &[f64], y: &mut [f64]| y.iter_mut().zip(x.iter().zip(&d)).for_each(|(y, (x, d))| *y = d * x);
+        let mut apply_a =
+            |x: &[f64], y: &mut [f64]| y.iter_mut().zip(x.iter().zip(&d)).for_each(|(y, (x, d))| *y = d * x);
         let mut varying = |r: &[f64], z: &mut [f64]| {
             calls += 1;
             for (i, (z, r)) in z.iter_mut().zip(r).enumerate() {

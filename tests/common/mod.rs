@@ -110,7 +110,8 @@ pub fn tet_quality(mesh: &LinearMesh, c: usize) -> f64 {
     let p: Vec<[f64; 3]> = mesh.cells[4 * c..4 * c + 4].iter().map(|&v| mesh.vertex(v)).collect();
     let e = |a: usize| [p[a][0] - p[0][0], p[a][1] - p[0][1], p[a][2] - p[0][2]];
     let (a, b, d) = (e(1), e(2), e(3));
-    let det = a[0] * (b[1] * d[2] - b[2] * d[1]) - a[1] * (b[0] * d[2] - b[2] * d[0]) + a[2] * (b[0] * d[1] - b[1] * d[0]);
+    let det =
+        a[0] * (b[1] * d[2] - b[2] * d[1]) - a[1] * (b[0] * d[2] - b[2] * d[0]) + a[2] * (b[0] * d[1] - b[1] * d[0]);
     let mut l: f64 = 0.0;
     for i in 0..4 {
         for j in i + 1..4 {

@@ -70,6 +70,10 @@ USAGE:
       The cell-interior nodes (p >= 4 in 3D, p >= 3 in 2D) are eliminated
       cell by cell before each solve unless --condense off (same mesh; the
       report's system_dofs counts the unknowns actually solved for).
+      A linear solve that falls back (PCG restarted with a safe
+      preconditioner, the direct solver after PCG, LU after Cholesky) is
+      printed with its reason and listed in the report (solver_per_solve,
+      fallback_per_solve, fallbacks).
       Then the optimisation stage (unless --optimize off) moves the nodes
       around every cell left invalid or with Q3 below 0.2 to untangle and
       improve it; with it on, an increment that adaptive stepping cannot
@@ -234,6 +238,9 @@ fn run_case(label: &str, mesh: &LinearMesh, projector: &ShapeProjector, opts: &C
         r.order, r.nodes, r.dofs, r.quality.min_q3, r.quality.mean_q3, r.quality.n_invalid, r.timings.total
     );
     eprintln!("[{label}] {}", increments_line(r));
+    if r.fallbacks > 0 {
+        eprintln!("[{label}] {}", fallbacks_line(r));
+    }
     if r.quality.n_invalid > 0 {
         eprintln!(
             "[{label}] WARNING: {} invalid element(s) (worst cell {}); try more --increments or another --poisson",
@@ -261,6 +268,15 @@ fn increments_line(r: &hocurve::curve::CurveReport) -> String {
         s.push(')');
     }
     s
+}
+
+/// "linear solver: 2 of 10 solves fell back: solve 4 by pcg-restarted
+/// (preconditioner-not-positive-definite), solve 7 by direct (stagnation)".
+fn fallbacks_line(r: &hocurve::curve::CurveReport) -> String {
+    let list: Vec<String> = (r.solver_per_solve.iter().zip(&r.fallback_per_solve).enumerate())
+        .filter_map(|(i, (by, f))| f.map(|f| format!("solve {} by {} ({})", i + 1, by.name(), f.name())))
+        .collect();
+    format!("linear solver: {} of {} solves fell back: {}", r.fallbacks, r.solver_per_solve.len(), list.join(", "))
 }
 
 fn cmd_demo(argv: &[String]) -> Result<()> {
@@ -507,6 +523,7 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
          \"increments_taken\": {},\n  \"load_fractions\": {:?},\n  \"step_backs\": [{}],\n  \"spacing\": \"{}\",\n  \"nodes\": {},\n  \"dofs\": {},\n  \"system_dofs\": {},\n  \
          \"cells\": {},\n  \"removed_caps\": {},\n  \"repair\": {},\n  \"projected_nodes\": {},\n  \"max_projection_distance\": {},\n{},\n  \
          \"newton_history\": {:?},\n  \"linear_solver\": \"{}\",\n  \"solver_iterations\": {:?},\n  \
+         \"solver_per_solve\": [{}],\n  \"fallbacks\": {},\n  \"fallback_per_solve\": [{}],\n  \
          \"seconds\": {{\"total\": {}, \"elevate\": {}, \"project\": {}, \"assembly\": {}, \"setup\": {}, \"solve\": {}, \"quality\": {}, \"check\": {}, \"optimize\": {}}},\n  \
          \"elastic_stop\": {},\n  \"optimization\": {},\n  \"output\": {}\n}}",
         r.order,
@@ -543,6 +560,13 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
         r.newton_history,
         r.linear_solver,
         r.solver_iterations,
+        r.solver_per_solve.iter().map(|s| format!("\"{}\"", s.name())).collect::<Vec<_>>().join(", "),
+        r.fallbacks,
+        r.fallback_per_solve
+            .iter()
+            .map(|f| f.map_or("null".into(), |f| format!("\"{}\"", f.name())))
+            .collect::<Vec<_>>()
+            .join(", "),
         num(t.total),
         num(t.elevate),
         num(t.project),
