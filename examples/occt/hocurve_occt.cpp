@@ -120,10 +120,11 @@ int main(int argc, char **argv) {
                 order, nodes, q.min_q1, q.min_q3, q.mean_q3, q.n_invalid, secs(t0, t_end), output.c_str());
     const occt::Placer *pl = proj.placer.get();
     if (pl)
-      std::printf("placement: %zu nodes by closest point (%zu on no edge or facet, %zu seam, %zu too far), %zu "
-                  "projected on %zu distorted facets (%zu facets at a pole)\n",
-                  pl->fallbacks, pl->fallbacks_unlocated, pl->fallbacks_seam, pl->fallbacks_far, pl->projected,
-                  pl->distorted_facets, pl->pole_facets);
+      std::printf("placement: %zu nodes by closest point (%zu on no edge or facet, %zu seam, %zu too far; %zu "
+                  "answers replaced by the local foot), %zu projected on %zu distorted facets (%zu facets at a pole, "
+                  "%zu across a seam)\n",
+                  pl->fallbacks, pl->fallbacks_unlocated, pl->fallbacks_seam, pl->fallbacks_far, pl->closest_replaced,
+                  pl->projected, pl->distorted_facets, pl->pole_facets, pl->seam_facets);
     if (!report.empty()) {
       std::ofstream r(report);
       r << "{\n  \"model\": \"" << model << "\",\n  \"dim\": " << dim << ",\n  \"order\": " << order
@@ -138,9 +139,10 @@ int main(int argc, char **argv) {
         << ",\n  \"placement\": \"" << placement << "\",\n  \"placement_fallbacks\": " << (pl ? pl->fallbacks : 0)
         << ",\n  \"placement_fallback_reasons\": {\"unlocated\": " << (pl ? pl->fallbacks_unlocated : 0)
         << ", \"seam\": " << (pl ? pl->fallbacks_seam : 0) << ", \"far\": " << (pl ? pl->fallbacks_far : 0)
-        << "},\n  \"placement_projected\": " << (pl ? pl->projected : 0)
+        << "},\n  \"closest_point_replaced\": " << (pl ? pl->closest_replaced : 0)
+        << ",\n  \"placement_projected\": " << (pl ? pl->projected : 0)
         << ",\n  \"distorted_facets\": " << (pl ? pl->distorted_facets : 0)
-        << ",\n  \"pole_facets\": " << (pl ? pl->pole_facets : 0)
+        << ",\n  \"pole_facets\": " << (pl ? pl->pole_facets : 0) << ",\n  \"seam_facets\": " << (pl ? pl->seam_facets : 0)
         << ",\n  \"projector_calls\": " << proj.calls << ",\n  \"seconds\": {\"total\": "
         << json_number(secs(t0, t_end)) << ", \"mesh\": " << json_number(secs(t0, t_mesh))
         << ", \"curve\": " << json_number(secs(t_mesh, t_curve)) << "}\n}\n";

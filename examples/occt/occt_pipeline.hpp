@@ -285,6 +285,8 @@ class Placer {
   // total and by reason (each node counts once, under the first reason met).
   std::size_t fallbacks = 0;
   std::size_t fallbacks_unlocated = 0;  // on no edge or facet of its entity (faces made by cap removal)
+  std::size_t closest_replaced = 0;     // fallbacks whose getClosestPoint answer was farther than the
+                                        // local foot (closest_checked)
   std::size_t fallbacks_seam = 0;       // its facet's parameters span more than half a period once
                                         // unwrapped, or every vertex of it is on a pole
   std::size_t fallbacks_far = 0;        // placed farther than half its edge or facet from where it was
@@ -306,7 +308,26 @@ class Placer {
     if (edim == 2 && m_.dim == 3 && (why = place_on_surface(etag, x, y)) == Miss::None) return;
     ++fallbacks;
     ++(why == Miss::Seam ? fallbacks_seam : why == Miss::Far ? fallbacks_far : fallbacks_unlocated);
+    closest_checked(edim, etag, x, y);
+  }
+
+  // Closest point, checked against a local search: gmsh 4.8's getClosestPoint
+  // can answer a point on the far side of a closed face (4.4 away on the
+  // torus, README). Gauss-Newton from the parameters of the entity's mesh
+  // vertex nearest to x finds the local foot; the nearer of the two is taken.
+  void closest_checked(int edim, int etag, const double *x, double *y) {
     closest(edim, etag, x, y);
+    const int64_t v = nearest_vertex(edim, etag, x);
+    if (v < 0) return;
+    const VParam &vp = vertex_param(edim, etag, v);
+    double uv[2] = {vp.uv[0], vp.uv[1]};
+    newton(edim, etag, x, uv, 30);
+    std::vector<double> z;
+    gmsh::model::getValue(edim, etag, std::vector<double>(uv, uv + edim), z);
+    if (z.size() == 3 && detail::dist3(z.data(), x) < detail::dist3(y, x) * (1 - 1e-9)) {
+      for (int k = 0; k < 3; ++k) y[k] = z[k];
+      ++closest_replaced;
+    }
   }
 
   static void closest(int edim, int etag, const double *x, double *y, double *param = nullptr) {
@@ -423,6 +444,38 @@ class Placer {
       if (closed) p.period[k] = hi.at(k) - lo.at(k);
     }
     return params_.emplace(std::make_pair(edim, etag), p).first->second;
+  }
+
+  // The mesh vertex of entity (edim, etag) nearest to x (its edges or facets
+  // near x first, all of them if none is), or -1 if the entity has none.
+  int64_t nearest_vertex(int edim, int etag, const double *x) const {
+    int64_t best = -1;
+    double bd = HUGE_VAL;
+    auto consider = [&](int64_t v) {
+      auto p = vertex(v);
+      const double d = detail::dist3(p.data(), x);
+      if (d < bd) bd = d, best = v;
+    };
+    if (edim == 1) {
+      auto it = curve_edges_.find(etag);
+      if (it == curve_edges_.end()) return -1;
+      auto &cand = curve_buckets_.at(etag).query(x);
+      if (!cand.empty())
+        for (std::size_t i : cand) consider(it->second[i].first), consider(it->second[i].second);
+      else
+        for (auto &e : it->second) consider(e.first), consider(e.second);
+    } else {
+      auto it = surface_facets_.find(etag);
+      if (it == surface_facets_.end()) return -1;
+      auto &cand = surface_buckets_.at(etag).query(x);
+      if (!cand.empty())
+        for (std::size_t i : cand)
+          for (int64_t v : it->second[i]) consider(v);
+      else
+        for (auto &f : it->second)
+          for (int64_t v : f) consider(v);
+    }
+    return best;
   }
 
   // Parameter(s) of vertex v on entity (edim, etag), cached.

@@ -30,7 +30,9 @@
 // cone; the test requires them. Before the seam and pole handling, the sphere's
 // facets at a pole were unwrapped relative to the pole's arbitrary longitude,
 // put nodes 0.6 of the facet away (or fell back), and the ball curved at p = 2
-// had an inverted cell.
+// had an inverted cell. Last, the closest-point fallback is checked on
+// points just off the boundary of sphere-torus's faces, where gmsh 4.8's
+// getClosestPoint answers the far side of the torus.
 // `fail`: the run ends with HOC_ERROR_PROJECTION and the nodes are unchanged.
 #include "occt_models.hpp"
 #include "occt_pipeline.hpp"
@@ -528,6 +530,45 @@ int seam() {
     CHECK(!c.pole || placer.pole_facets > 0, "%s: no facet at a pole", c.name);
     gmsh::model::remove();
   }
+
+  // The closest-point fallback: gmsh 4.8's getClosestPoint on the torus patch
+  // of sphere-torus, for a point 1e-8..1e-6 below the equator the patch ends
+  // on, answers the far side of the torus (4.4 away). Placer::closest_checked
+  // compares it with the local foot from the nearest mesh vertex.
+  gmsh::model::add("sphere-torus");
+  occt::build_sphere_torus();
+  occt::mesh_linear(3, 0.4);
+  occt::LinearMesh lm = occt::collect(3);
+  occt::Placer placer(lm);
+  gmsh::vectorpair faces;
+  gmsh::model::getEntities(faces, 2);
+  std::size_t probes = 0, far = 0;
+  double worst = 0;
+  for (auto &f : faces) {
+    std::vector<int> up, down;
+    gmsh::model::getAdjacencies(2, f.second, up, down);
+    for (int c : down) {
+      std::vector<double> lo, hi;
+      gmsh::model::getParametrizationBounds(1, c, lo, hi);
+      for (int i = 0; i < 20; ++i) {
+        std::vector<double> x;
+        gmsh::model::getValue(1, c, {lo[0] + (hi[0] - lo[0]) * (i + 0.5) / 20}, x);
+        for (double off : {-1e-6, -1e-8, 1e-8, 1e-6}) {
+          double y[3], z[3], xo[3] = {x[0], x[1], x[2] + off};
+          occt::Placer::closest(2, f.second, xo, y);
+          placer.closest_checked(2, f.second, xo, z);
+          far += occt::detail::dist3(y, xo) > 1e-3;
+          worst = std::max(worst, occt::detail::dist3(z, xo));
+          ++probes;
+        }
+      }
+    }
+  }
+  std::printf("sphere-torus: %zu points 1e-8..1e-6 off the faces' boundary curves: getClosestPoint answered %zu of "
+              "them more than 1e-3 away, the checked closest point at most %.3g away (%zu replaced)\n",
+              probes, far, worst, placer.closest_replaced);
+  CHECK(worst <= 2e-6, "the checked closest point is %.3g from its point", worst);
+  gmsh::model::remove();
   return 0;
 }
 
