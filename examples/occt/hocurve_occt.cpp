@@ -119,7 +119,9 @@ int main(int argc, char **argv) {
     std::printf("p = %d: %zu nodes, min Q1 %.4f, min Q3 %.4f, mean Q3 %.4f, %zu invalid, %.2f s; wrote %s\n",
                 order, nodes, q.min_q1, q.min_q3, q.mean_q3, q.n_invalid, secs(t0, t_end), output.c_str());
     const occt::Placer *pl = proj.placer.get();
-    if (pl)
+    if (pl && placement == "closest")
+      std::printf("placement: closest point (%zu answers replaced by the local foot)\n", pl->closest_replaced);
+    else if (pl)
       std::printf("placement: %zu nodes by closest point (%zu on no edge or facet, %zu seam, %zu too far; %zu "
                   "answers replaced by the local foot), %zu projected on %zu distorted facets (%zu facets at a pole, "
                   "%zu across a seam)\n",

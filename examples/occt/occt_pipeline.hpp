@@ -221,7 +221,8 @@ inline double wrap(double x, double lo, double period) {
 }  // namespace detail
 
 // How the projector places a high-order node on its CAD entity.
-//  - Closest: the closest point to the straight-sided node (gmsh::model::getClosestPoint).
+//  - Closest: the closest point to the straight-sided node (gmsh::model::getClosestPoint,
+//    checked against the local foot: Placer::closest_checked).
 //  - Parametric: through the CAD parametrisation of the linear edge or facet
 //    the node lies on. A node at fraction t of a mesh edge on a CAD curve goes
 //    to C(u_a + t (u_b - u_a)), u_a, u_b the parameters of the edge's vertices
@@ -772,7 +773,7 @@ class Placer {
 struct Projector {
   int mesh_dim = 3;
   Placement placement = Placement::Parametric;
-  std::unique_ptr<Placer> placer;  // made by make_mesh for Placement::Parametric
+  std::unique_ptr<Placer> placer;  // made by make_mesh
   int fail_tag = -1;  // tests: fail on this entity tag (of dimension fail_dim)
   int fail_dim = -1;
   std::size_t calls = 0, points = 0;
@@ -787,9 +788,13 @@ struct Projector {
       std::vector<double> xyz(3 * n, 0.0), closest, uv;
       for (size_t i = 0; i < n; ++i)
         for (int k = 0; k < d; ++k) xyz[3 * i + k] = in[d * i + k];
-      if (self->placement == Placement::Parametric && self->placer) {
+      if (self->placer) {
         closest.resize(3 * n);
-        for (size_t i = 0; i < n; ++i) self->placer->place(entity_dim, entity_tag, &xyz[3 * i], &closest[3 * i]);
+        for (size_t i = 0; i < n; ++i)
+          if (self->placement == Placement::Parametric)
+            self->placer->place(entity_dim, entity_tag, &xyz[3 * i], &closest[3 * i]);
+          else
+            self->placer->closest_checked(entity_dim, entity_tag, &xyz[3 * i], &closest[3 * i]);
       } else {
         gmsh::model::getClosestPoint(entity_dim, entity_tag, xyz, closest, uv);
       }
@@ -814,7 +819,7 @@ inline hocurve::Mesh make_mesh(const LinearMesh &m, Projector &proj) {
   mesh.set_boundary(m.facets, m.facet_tags);
   if (!m.edges.empty()) mesh.set_feature_edges(m.edges, m.edge_tags);
   proj.mesh_dim = m.dim;
-  proj.placer.reset(proj.placement == Placement::Parametric ? new Placer(m) : nullptr);
+  proj.placer.reset(new Placer(m));
   Projector *pp = &proj;
   mesh.set_projector([pp](int dim, int tag, std::size_t n, const double *in, double *out) {
     return Projector::callback(pp, dim, tag, n, in, out);
