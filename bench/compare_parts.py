@@ -84,6 +84,18 @@ def quality(hocurve, msh, report, timeout):
         return json.load(f)
 
 
+def first_error(log):
+    """First line of a gmsh log that starts with "Error", or ""."""
+    try:
+        with open(log) as f:
+            for l in f:
+                if l.startswith("Error"):
+                    return l.strip()[:300]
+    except OSError:
+        pass
+    return ""
+
+
 def last_line(log):
     try:
         with open(log) as f:
@@ -125,9 +137,11 @@ def run_one(args, name, path, h, p, tool):
         rc2, secs2 = run_timed(cmd2, base + ".noadapt.log", args.timeout)
         row.update(retry_command=" ".join(cmd2), retry_exit=rc2, retry_seconds=round(secs2, 2))
     else:
-        row["status"] = "ok" if rc == 0 else ("invalid" if tool == "hocurve" else "failed")
+        # hocurve-occt: 3 = written with invalid cells. gmsh: nonzero when it logged an
+        # error (its optimiser: "Failed to reach critical value"), the mesh written all the same.
+        row["status"] = "ok" if rc == 0 else ("invalid" if tool == "hocurve" else "error")
         if tool != "hocurve" and rc != 0:
-            row["message"] = last_line(base + ".log")
+            row["message"] = first_error(base + ".log") or last_line(base + ".log")
     q = quality(args.hocurve, msh, base + ".q.json", args.timeout)
     if q:
         row.update(cells=q.get("cells"), nodes=q.get("nodes"), min_q3=q.get("min_q3"),
@@ -150,7 +164,7 @@ def fmt_q(row):
     q = row.get("min_q3")
     inv = row.get("invalid")
     cert = row.get("certified_invalid")
-    qs = "–" if q is None else f"{q:.3f}"
+    qs = "–" if q is None else (f"{q:.3f}" if abs(q) >= 0.001 or q == 0 else f"{q:.1e}")
     invs = "–" if inv is None else (f"{inv}" if cert in (None, inv) else f"{inv} ({cert} cert.)")
     secs = f"{row['seconds']:.1f}"
     st = row["status"]
@@ -161,8 +175,10 @@ def fmt_q(row):
         qs = f"fails; {qs}" if q is not None else "fails"
         if row.get("retry_seconds") is not None:
             secs += f" [{row['retry_seconds']:.1f}]"
-    elif st == "failed":
+    elif st == "failed" or (st == "error" and q is None):
         qs = "fails" if q is None else f"fails; {qs}"
+    elif st == "error":
+        qs += " ‡"  # gmsh logged an error but wrote the mesh
     return qs, invs, secs
 
 
