@@ -4,7 +4,7 @@
 //
 //   hocurve-occt MODEL.step|.brep --order P [--mesh-size H] [--curvature N] [--formulation F]
 //                [--poisson NU] [--increments N] [--threads T] [--placement parametric|closest]
-//                --output OUT.msh|.vtu [--report R.json]
+//                [--adaptive on|off] --output OUT.msh|.vtu [--report R.json]
 #include "occt_pipeline.hpp"
 
 #include <chrono>
@@ -18,7 +18,7 @@ namespace {
 void usage() {
   std::cerr << "usage: hocurve-occt MODEL.step|.brep --order P [--mesh-size H] [--curvature N] [--formulation "
                "linear|ile|iil|cil|nonlinear] [--poisson NU] [--increments N] [--threads T] "
-               "[--placement parametric|closest] "
+               "[--placement parametric|closest] [--adaptive on|off] "
                "--output OUT.msh|.vtu [--report R.json]\n";
 }
 
@@ -41,7 +41,7 @@ std::string json_number(double v) {
 }  // namespace
 
 int main(int argc, char **argv) {
-  std::string model, output, report, formulation = "ile", placement = "parametric";
+  std::string model, output, report, formulation = "ile", placement = "parametric", adaptive = "on";
   int order = 0, increments = 1, threads = 0, per_2pi = 12;
   double h = 0.0, poisson = 0.3;
   for (int i = 1; i < argc; ++i) {
@@ -61,6 +61,7 @@ int main(int argc, char **argv) {
     else if (a == "--increments") increments = std::atoi(value().c_str());
     else if (a == "--threads") threads = std::atoi(value().c_str());
     else if (a == "--placement") placement = value();
+    else if (a == "--adaptive") adaptive = value();
     else if (a == "--output") output = value();
     else if (a == "--report") report = value();
     else if (a == "-h" || a == "--help") {
@@ -72,7 +73,8 @@ int main(int argc, char **argv) {
       return 2;
     }
   }
-  if (model.empty() || output.empty() || order < 1 || (placement != "parametric" && placement != "closest")) {
+  if (model.empty() || output.empty() || order < 1 || (placement != "parametric" && placement != "closest") ||
+      (adaptive != "on" && adaptive != "off")) {
     usage();
     return 2;
   }
@@ -98,6 +100,9 @@ int main(int argc, char **argv) {
     mesh.set_formulation(f);
     mesh.set_threads(threads);
     mesh.set_order(order);
+    // Off: a step that inverts a cell is kept rather than halved, so the run
+    // ends with the mesh and its invalid cells counted (exit status 3).
+    if (adaptive == "off") mesh.set_adaptive_stepping(0);
     mesh.run_increments(increments);
     auto t_curve = std::chrono::steady_clock::now();
     const HocQuality q = mesh.quality();
@@ -113,19 +118,34 @@ int main(int argc, char **argv) {
                 lm.facet_tags.size(), lm.edge_tags.size());
     std::printf("p = %d: %zu nodes, min Q1 %.4f, min Q3 %.4f, mean Q3 %.4f, %zu invalid, %.2f s; wrote %s\n",
                 order, nodes, q.min_q1, q.min_q3, q.mean_q3, q.n_invalid, secs(t0, t_end), output.c_str());
+    const occt::Placer *pl = proj.placer.get();
+    if (pl && placement == "closest")
+      std::printf("placement: closest point (%zu answers replaced by the local foot)\n", pl->closest_replaced);
+    else if (pl)
+      std::printf("placement: %zu nodes by closest point (%zu on no edge or facet, %zu seam, %zu too far; %zu "
+                  "answers replaced by the local foot), %zu projected on %zu distorted facets (%zu facets at a pole, "
+                  "%zu across a seam)\n",
+                  pl->fallbacks, pl->fallbacks_unlocated, pl->fallbacks_seam, pl->fallbacks_far, pl->closest_replaced,
+                  pl->projected, pl->distorted_facets, pl->pole_facets, pl->seam_facets);
     if (!report.empty()) {
       std::ofstream r(report);
       r << "{\n  \"model\": \"" << model << "\",\n  \"dim\": " << dim << ",\n  \"order\": " << order
         << ",\n  \"formulation\": \"" << formulation << "\",\n  \"material\": \""
         << (hyper ? "neo-hookean" : "linear") << "\",\n  \"poisson\": " << json_number(poisson)
-        << ",\n  \"increments\": " << increments << ",\n  \"cells_given\": " << lm.cells.size() / (dim + 1)
+        << ",\n  \"increments\": " << increments << ",\n  \"adaptive\": \"" << adaptive << "\"" << ",\n  \"cells_given\": " << lm.cells.size() / (dim + 1)
         << ",\n  \"cells\": " << cc.first << ",\n  \"nodes\": " << nodes << ",\n  \"dofs\": " << nodes * dim
         << ",\n  \"boundary_facets\": " << lm.facet_tags.size() << ",\n  \"feature_edges\": "
         << lm.edge_tags.size() << ",\n  \"min_q1\": " << json_number(q.min_q1)
         << ",\n  \"min_q2\": " << json_number(q.min_q2) << ",\n  \"min_q3\": " << json_number(q.min_q3)
         << ",\n  \"mean_q3\": " << json_number(q.mean_q3) << ",\n  \"invalid_elements\": " << q.n_invalid
-        << ",\n  \"placement\": \"" << placement << "\",\n  \"placement_fallbacks\": "
-        << (proj.placer ? proj.placer->fallbacks : 0) << ",\n  \"projector_calls\": " << proj.calls << ",\n  \"seconds\": {\"total\": "
+        << ",\n  \"placement\": \"" << placement << "\",\n  \"placement_fallbacks\": " << (pl ? pl->fallbacks : 0)
+        << ",\n  \"placement_fallback_reasons\": {\"unlocated\": " << (pl ? pl->fallbacks_unlocated : 0)
+        << ", \"seam\": " << (pl ? pl->fallbacks_seam : 0) << ", \"far\": " << (pl ? pl->fallbacks_far : 0)
+        << "},\n  \"closest_point_replaced\": " << (pl ? pl->closest_replaced : 0)
+        << ",\n  \"placement_projected\": " << (pl ? pl->projected : 0)
+        << ",\n  \"distorted_facets\": " << (pl ? pl->distorted_facets : 0)
+        << ",\n  \"pole_facets\": " << (pl ? pl->pole_facets : 0) << ",\n  \"seam_facets\": " << (pl ? pl->seam_facets : 0)
+        << ",\n  \"projector_calls\": " << proj.calls << ",\n  \"seconds\": {\"total\": "
         << json_number(secs(t0, t_end)) << ", \"mesh\": " << json_number(secs(t0, t_mesh))
         << ", \"curve\": " << json_number(secs(t_mesh, t_curve)) << "}\n}\n";
       if (!r) throw std::runtime_error("cannot write " + report);

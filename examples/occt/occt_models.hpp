@@ -1,7 +1,7 @@
 // Test models, built with gmsh's OpenCASCADE kernel and exported to STEP (no
 // CAD file is downloaded): a filleted block with two holes, a torus with a
-// sphere cut out, a 2D plate with a circular and an elliptic hole, and a 2D
-// NACA 0012 aerofoil in a box.
+// sphere cut out, a 2D plate with a circular and an elliptic hole, a 2D
+// NACA 0012 aerofoil in a box, and a ball.
 #ifndef HOCURVE_OCCT_MODELS_HPP
 #define HOCURVE_OCCT_MODELS_HPP
 
@@ -110,13 +110,23 @@ inline void build_naca(const std::string &digits = "0012") {
   gmsh::model::occ::synchronize();
 }
 
-// Build model `name` ("part", "sphere-torus", "plate", "naca") and write it to `path` (.step/.brep).
+// (e) A ball (r = 1): one sphere face whose parametrisation (longitude u,
+// latitude v) has its seam on a meridian and two poles, where S_u = 0 and u
+// is meaningless: the facets around a pole straddle the seam and touch a
+// singular point.
+inline void build_sphere() {
+  gmsh::model::occ::addSphere(0, 0, 0, 1);
+  gmsh::model::occ::synchronize();
+}
+
+// Build model `name` ("part", "sphere-torus", "plate", "naca", "sphere") and write it to `path` (.step/.brep).
 inline void write_model(const std::string &name, const std::string &path) {
   gmsh::model::add(name);
   if (name == "part") build_part();
   else if (name == "sphere-torus") build_sphere_torus();
   else if (name == "plate") build_plate();
   else if (name == "naca") build_naca("0012");
+  else if (name == "sphere") build_sphere();
   else throw std::runtime_error("unknown model " + name);
   gmsh::write(path);
   gmsh::model::remove();

@@ -221,7 +221,8 @@ inline double wrap(double x, double lo, double period) {
 }  // namespace detail
 
 // How the projector places a high-order node on its CAD entity.
-//  - Closest: the closest point to the straight-sided node (gmsh::model::getClosestPoint).
+//  - Closest: the closest point to the straight-sided node (gmsh::model::getClosestPoint,
+//    checked against the local foot: Placer::closest_checked).
 //  - Parametric: through the CAD parametrisation of the linear edge or facet
 //    the node lies on. A node at fraction t of a mesh edge on a CAD curve goes
 //    to C(u_a + t (u_b - u_a)), u_a, u_b the parameters of the edge's vertices
@@ -235,9 +236,17 @@ inline double wrap(double x, double lo, double period) {
 //    transfinite (Gordon–Hall) map. Without the blend, a facet on a plane
 //    whose edge follows a circle keeps its interior nodes straight while its
 //    edge bulges inwards, and at p = 5 that facet, whose nodes are all
-//    prescribed, folds (see README). A node the parametric placement cannot
-//    handle (not on a known edge or facet, or placed farther than half the
-//    element from its straight position) falls back to the closest point.
+//    prescribed, folds (see README).
+//    The facet's (u,v) are first brought to one period (Placer::unwrap_shortest),
+//    and a vertex on a singular point of the parametrisation (a sphere's pole,
+//    a cone's apex) takes no part in its free parameter (Placer::facet_uv).
+//    Where the parametrisation is far from affine over a facet (next to a
+//    pole), the facet's nodes are projected instead (Placer::facet_info): the
+//    foot on the surface of the straight node plus the same edge blend in space.
+//    A node the parametric placement cannot handle (not on a known edge or
+//    facet, a facet whose parameters span more than half a period, or placed
+//    farther than half the element from its straight position) falls back to
+//    the closest point; each such node is counted.
 enum class Placement { Closest, Parametric };
 
 // Node placement on the CAD entities of a collected linear mesh.
@@ -253,8 +262,12 @@ class Placer {
         curve_edges_[m.edge_tags[e]].push_back({m.edges[2 * e], m.edges[2 * e + 1]});
         feature_[key(m.edges[2 * e], m.edges[2 * e + 1])] = m.edge_tags[e];
       }
-      for (std::size_t f = 0; f < m.facet_tags.size(); ++f)
-        surface_facets_[m.facet_tags[f]].push_back({m.facets[3 * f], m.facets[3 * f + 1], m.facets[3 * f + 2]});
+      for (std::size_t f = 0; f < m.facet_tags.size(); ++f) {
+        auto &list = surface_facets_[m.facet_tags[f]];
+        for (int i = 0; i < 3; ++i)
+          edge_facets_[key(m.facets[3 * f + i], m.facets[3 * f + (i + 1) % 3])].push_back({m.facet_tags[f], list.size()});
+        list.push_back({m.facets[3 * f], m.facets[3 * f + 1], m.facets[3 * f + 2]});
+      }
     }
     const double eps = 1e-9 * m.size;
     for (auto &c : curve_edges_) {
@@ -269,14 +282,53 @@ class Placer {
     }
   }
 
-  std::size_t fallbacks = 0;  // nodes placed by closest point for want of a parametric placement
+  // Nodes placed by closest point for want of a parametric placement, in
+  // total and by reason (each node counts once, under the first reason met).
+  std::size_t fallbacks = 0;
+  std::size_t fallbacks_unlocated = 0;  // on no edge or facet of its entity (faces made by cap removal)
+  std::size_t closest_replaced = 0;     // fallbacks whose getClosestPoint answer was farther than the
+                                        // local foot (closest_checked)
+  std::size_t fallbacks_seam = 0;       // its facet's parameters span more than half a period once
+                                        // unwrapped, or every vertex of it is on a pole
+  std::size_t fallbacks_far = 0;        // placed farther than half its edge or facet from where it was
+  std::size_t projected = 0;            // nodes of distorted facets, projected instead (facet_info)
+  std::size_t pole_facets = 0;          // facets with a vertex on a singular point (pole, apex)
+  std::size_t seam_facets = 0;          // facets whose vertex parameters were unwrapped across a seam
+  std::size_t distorted_facets = 0;     // facets whose parametrisation is too far from affine
+  // A facet is distorted where S of its linear (u,v) is more than this
+  // fraction of the facet from the foot of the straight point (facet_info).
+  // Measured at h = 0.25..0.4: torus and sphere-torus facets ≤ 0.048 (the
+  // torus converges well placed through its parametrisation), a sphere's
+  // facets at its poles 0.16-0.26 and the next ring up to 0.17, a cone's apex 0.22.
+  static constexpr double kDistortion = 0.05;
 
   // Place point x (3 coordinates) on entity (edim, etag) into y (3 coordinates).
   void place(int edim, int etag, const double *x, double *y) {
-    if (edim == 1 && place_on_curve(etag, x, y)) return;
-    if (edim == 2 && m_.dim == 3 && place_on_surface(etag, x, y)) return;
+    Miss why = Miss::Unlocated;
+    if (edim == 1 && (why = place_on_curve(etag, x, y)) == Miss::None) return;
+    if (edim == 2 && m_.dim == 3 && (why = place_on_surface(etag, x, y)) == Miss::None) return;
     ++fallbacks;
+    ++(why == Miss::Seam ? fallbacks_seam : why == Miss::Far ? fallbacks_far : fallbacks_unlocated);
+    closest_checked(edim, etag, x, y);
+  }
+
+  // Closest point, checked against a local search: gmsh 4.8's getClosestPoint
+  // can answer a point on the far side of a closed face (4.4 away on the
+  // torus, README). Gauss-Newton from the parameters of the entity's mesh
+  // vertex nearest to x finds the local foot; the nearer of the two is taken.
+  void closest_checked(int edim, int etag, const double *x, double *y) {
     closest(edim, etag, x, y);
+    const int64_t v = nearest_vertex(edim, etag, x);
+    if (v < 0) return;
+    const VParam &vp = vertex_param(edim, etag, v);
+    double uv[2] = {vp.uv[0], vp.uv[1]};
+    newton(edim, etag, x, uv, 30);
+    std::vector<double> z;
+    gmsh::model::getValue(edim, etag, std::vector<double>(uv, uv + edim), z);
+    if (z.size() == 3 && detail::dist3(z.data(), x) < detail::dist3(y, x) * (1 - 1e-9)) {
+      for (int k = 0; k < 3; ++k) y[k] = z[k];
+      ++closest_replaced;
+    }
   }
 
   static void closest(int edim, int etag, const double *x, double *y, double *param = nullptr) {
@@ -315,10 +367,16 @@ class Placer {
         if (!(a[0] > 0)) break;
         step[0] = b[0] / a[0];
       } else {
-        const double det = a[0] * a[2] - a[1] * a[1];
-        if (!(det > 1e-14 * a[0] * a[2])) break;  // singular (a pole): keep what we have
-        step[0] = (a[2] * b[0] - a[1] * b[1]) / det;
-        step[1] = (a[0] * b[1] - a[1] * b[0]) / det;
+        const double det = a[0] * a[2] - a[1] * a[1], big = std::max(a[0], a[2]);
+        if (!(big > 0)) break;
+        if (det > 1e-14 * big * big) {
+          step[0] = (a[2] * b[0] - a[1] * b[1]) / det;
+          step[1] = (a[0] * b[1] - a[1] * b[0]) / det;
+        } else if (a[0] >= a[2]) {  // singular (a pole, where S_v vanishes): move along u only
+          step[0] = b[0] / a[0];
+        } else {  // a pole where S_u vanishes (sphere, cone apex): move along v only
+          step[1] = b[1] / a[2];
+        }
       }
       std::vector<double> next(at), en;
       for (int i = 0; i < edim; ++i) next[i] += step[i];
@@ -333,8 +391,17 @@ class Placer {
 
  private:
   struct Param {       // parametrisation bounds of an entity
-    double lo[2], period[2];  // period 0: not periodic in that direction
+    double lo[2], hi[2], period[2];  // period 0: not periodic in that direction
   };
+  // Parameters of a vertex on a surface (curve: uv[0]); free[k]: the surface
+  // does not depend on parameter k at the vertex (a pole of a sphere, the apex
+  // of a cone: S_u = 0 there), so uv[k] is meaningless and is chosen per node.
+  struct VParam {
+    double uv[2];
+    bool free[2];
+  };
+  // Why a node was not placed through the parametrisation.
+  enum class Miss { None, Unlocated, Seam, Far };
   using EdgeKey = std::pair<int64_t, int64_t>;
   static EdgeKey key(int64_t a, int64_t b) { return a < b ? EdgeKey{a, b} : EdgeKey{b, a}; }
 
@@ -356,12 +423,13 @@ class Placer {
   const Param &param_info(int edim, int etag) {
     auto it = params_.find({edim, etag});
     if (it != params_.end()) return it->second;
-    Param p{{0, 0}, {0, 0}};
+    Param p{{0, 0}, {0, 0}, {0, 0}};
     std::vector<double> lo, hi;
     gmsh::model::getParametrizationBounds(edim, etag, lo, hi);
     const double tol = 1e-9 * m_.size;
     for (int k = 0; k < edim; ++k) {
       p.lo[k] = lo.at(k);
+      p.hi[k] = hi.at(k);
       // Periodic in direction k if the two ends of the parameter range meet (at 3 places across).
       bool closed = hi.at(k) > lo.at(k);
       for (double s : {0.2, 0.5, 0.8}) {
@@ -379,24 +447,70 @@ class Placer {
     return params_.emplace(std::make_pair(edim, etag), p).first->second;
   }
 
+  // The mesh vertex of entity (edim, etag) nearest to x (its edges or facets
+  // near x first, all of them if none is), or -1 if the entity has none.
+  int64_t nearest_vertex(int edim, int etag, const double *x) const {
+    int64_t best = -1;
+    double bd = HUGE_VAL;
+    auto consider = [&](int64_t v) {
+      auto p = vertex(v);
+      const double d = detail::dist3(p.data(), x);
+      if (d < bd) bd = d, best = v;
+    };
+    if (edim == 1) {
+      auto it = curve_edges_.find(etag);
+      if (it == curve_edges_.end()) return -1;
+      auto &cand = curve_buckets_.at(etag).query(x);
+      if (!cand.empty())
+        for (std::size_t i : cand) consider(it->second[i].first), consider(it->second[i].second);
+      else
+        for (auto &e : it->second) consider(e.first), consider(e.second);
+    } else {
+      auto it = surface_facets_.find(etag);
+      if (it == surface_facets_.end()) return -1;
+      auto &cand = surface_buckets_.at(etag).query(x);
+      if (!cand.empty())
+        for (std::size_t i : cand)
+          for (int64_t v : it->second[i]) consider(v);
+      else
+        for (auto &f : it->second)
+          for (int64_t v : f) consider(v);
+    }
+    return best;
+  }
+
   // Parameter(s) of vertex v on entity (edim, etag), cached.
-  std::array<double, 2> vertex_param(int edim, int etag, int64_t v) {
+  const VParam &vertex_param(int edim, int etag, int64_t v) {
     auto k = std::make_tuple(edim, etag, v);
     auto it = vparam_.find(k);
     if (it != vparam_.end()) return it->second;
     auto x = vertex(v);
-    double y[3], uv[2] = {0, 0};
-    closest(edim, etag, x.data(), y, uv);
+    double y[3];
+    VParam r{{0, 0}, {false, false}};
+    closest(edim, etag, x.data(), y, r.uv);
     // getClosestPoint's parameter is only good to ~1e-8 (the end vertex of a
     // torus seam came back 1.8e-8 off, its parameter outside the curve's range).
-    newton(edim, etag, x.data(), uv);
-    return vparam_[k] = {uv[0], uv[1]};
+    newton(edim, etag, x.data(), r.uv);
+    if (edim == 2) {
+      // A singular point: sweeping parameter k over its whole range moves the
+      // point by less than 1e-9 of the model (at a sphere's pole, refined by
+      // the rank-1 Gauss-Newton step, |S_u| is ~1e-16).
+      const Param &p = param_info(2, etag);
+      std::vector<double> d;
+      gmsh::model::getDerivative(2, etag, {r.uv[0], r.uv[1]}, d);
+      for (int j = 0; j < 2; ++j) {
+        const double n = std::sqrt(d.at(3 * j) * d.at(3 * j) + d.at(3 * j + 1) * d.at(3 * j + 1) + d.at(3 * j + 2) * d.at(3 * j + 2));
+        r.free[j] = n * (p.hi[j] - p.lo[j]) <= 1e-9 * m_.size;
+      }
+      if (r.free[0] && r.free[1]) r.free[0] = r.free[1] = false;  // degenerate everywhere: no choice to make
+    }
+    return vparam_[k] = r;
   }
 
   // The point at fraction t of mesh edge (a, b) of CAD curve `tag`, through the curve's parameter.
   std::array<double, 3> curve_point(int tag, int64_t a, int64_t b, double t) {
     const Param &p = param_info(1, tag);
-    double ua = vertex_param(1, tag, a)[0], ub = vertex_param(1, tag, b)[0];
+    double ua = vertex_param(1, tag, a).uv[0], ub = vertex_param(1, tag, b).uv[0];
     ub = detail::unwrap(ub, ua, p.period[0]);
     double u = detail::wrap(ua + t * (ub - ua), p.lo[0], p.period[0]);
     std::vector<double> xyz;
@@ -404,9 +518,9 @@ class Placer {
     return {xyz.at(0), xyz.at(1), xyz.at(2)};
   }
 
-  bool place_on_curve(int tag, const double *x, double *y) {
+  Miss place_on_curve(int tag, const double *x, double *y) {
     auto it = curve_edges_.find(tag);
-    if (it == curve_edges_.end()) return false;
+    if (it == curve_edges_.end()) return Miss::Unlocated;
     const std::pair<int64_t, int64_t> *best = nullptr;
     double best_d = 0, best_t = 0;
     for (std::size_t i : curve_buckets_.at(tag).query(x)) {
@@ -422,19 +536,21 @@ class Placer {
       if (d > 1e-8 * std::sqrt(ab2)) continue;
       if (!best || d < best_d) best = &e, best_d = d, best_t = t;
     }
-    if (!best) return false;
+    if (!best) return Miss::Unlocated;
     auto a = vertex(best->first), b = vertex(best->second);
     auto q = curve_point(tag, best->first, best->second, best_t);
-    if (detail::dist3(q.data(), x) > 0.5 * detail::dist3(a.data(), b.data())) return false;
+    if (detail::dist3(q.data(), x) > 0.5 * detail::dist3(a.data(), b.data())) return Miss::Far;
     for (int k = 0; k < 3; ++k) y[k] = q[k];
-    return true;
+    return Miss::None;
   }
 
-  bool place_on_surface(int tag, const double *x, double *y) {
+  Miss place_on_surface(int tag, const double *x, double *y) {
     auto it = surface_facets_.find(tag);
-    if (it == surface_facets_.end()) return false;
-    const std::array<int64_t, 3> *best = nullptr;
+    if (it == surface_facets_.end()) return Miss::Unlocated;
+    // The facets holding x (one inside a facet, two on an edge, more at a vertex); best: the most inside.
+    std::size_t best = 0, found = 0;
     double lam[3] = {0, 0, 0}, best_score = -1;
+    std::size_t holding[8];
     for (std::size_t i : surface_buckets_.at(tag).query(x)) {
       auto &f = it->second[i];
       auto a = vertex(f[0]), b = vertex(f[1]), c = vertex(f[2]);
@@ -450,34 +566,51 @@ class Placer {
       double q[3];
       for (int k = 0; k < 3; ++k) q[k] = a[k] + s * u[k] + t * w[k];
       if (detail::dist3(q, x) > 1e-8 * std::sqrt(std::max(uu, ww))) continue;
-      if (score > best_score) best = &f, best_score = score, lam[0] = l[0], lam[1] = l[1], lam[2] = l[2];
+      if (found < 8) holding[found] = i;
+      if (!found++ || score > best_score) best = i, best_score = score, lam[0] = l[0], lam[1] = l[1], lam[2] = l[2];
     }
-    if (!best) return false;
-    const auto &f = *best;
+    if (!found) return Miss::Unlocated;
+    const auto &f = it->second[best];
+    const FacetInfo &info = facet_info(tag, best);
+    if (info.miss != Miss::None) return info.miss;
+    // A node on an edge is projected if a facet of the edge is distorted, so
+    // that its place does not depend on which facet was found.
+    bool distorted = false;
+    for (std::size_t h = 0; h < std::min<std::size_t>(found, 8); ++h) distorted = distorted || projected_facet(tag, holding[h]);
     const Param &p = param_info(2, tag);
-    std::array<double, 2> uv[3];
-    for (int i = 0; i < 3; ++i) {
-      uv[i] = vertex_param(2, tag, f[i]);
-      for (int k = 0; k < 2; ++k) uv[i][k] = detail::unwrap(uv[i][k], uv[0][k], p.period[k]);
-    }
-    double target[2] = {0, 0};
-    for (int i = 0; i < 3; ++i)
-      for (int k = 0; k < 2; ++k) target[k] += lam[i] * uv[i][k];
-    // Blend the curvature of the facet's edges on CAD curves into the facet.
+    const Facet &uvf = info.uvf;
+    double target[2], shift[3] = {0, 0, 0};
+    facet_uv(uvf, lam, target);
+    // Blend the facet's edges into it (transfinite, Gordon-Hall): an edge on a
+    // CAD curve by its curve point, in (u,v) for the parametric placement and
+    // in space (`shift`) for the projected one; in a parametric facet, an edge
+    // shared with a projected facet by the foot of its straight point, so the
+    // facet meets the nodes that edge got.
     for (int e = 0; e < 3; ++e) {
       const int i = e, j = (e + 1) % 3;
       auto fe = feature_.find(key(f[i], f[j]));
       const double s = lam[i] + lam[j];
-      if (fe == feature_.end() || s < 1e-12) continue;
+      if (s < 1e-12) continue;
       const double t = lam[j] / s;
+      auto va = vertex(f[i]), vb = vertex(f[j]);
+      double le[3] = {0, 0, 0}, lin[2], uve[2];
+      le[i] = 1 - t, le[j] = t;
+      facet_uv(uvf, le, lin);
+      for (int k = 0; k < 2; ++k) uve[k] = lin[k];
+      if (fe == feature_.end()) {
+        if (distorted || !projected_edge(tag, f[i], f[j])) continue;
+        double xe[3];
+        for (int k = 0; k < 3; ++k) xe[k] = (1 - t) * va[k] + t * vb[k];
+        newton(2, tag, xe, uve, 20);
+        for (int k = 0; k < 2; ++k) target[k] += s * (uve[k] - lin[k]);
+        continue;
+      }
       auto ye = curve_point(fe->second, f[i], f[j], t);
+      for (int k = 0; k < 3; ++k) shift[k] += s * (ye[k] - ((1 - t) * va[k] + t * vb[k]));
       // (u,v) of the curve point: Gauss-Newton from the edge's linear (u,v),
       // already unwrapped; closest point (unwrapped) only if that does not
       // come near (the curve lies on the face to the CAD's tolerance, here
       // ~1e-13, so 1e-3 of the edge only rules out a wrong local minimum).
-      double lin[2], uve[2];
-      for (int k = 0; k < 2; ++k) uve[k] = lin[k] = (1 - t) * uv[i][k] + t * uv[j][k];
-      auto va = vertex(f[i]), vb = vertex(f[j]);
       if (!(newton(2, tag, ye.data(), uve) <= 1e-3 * detail::dist3(va.data(), vb.data()))) {
         double z[3];
         closest(2, tag, ye.data(), z, uve);
@@ -485,17 +618,140 @@ class Placer {
       }
       for (int k = 0; k < 2; ++k) target[k] += s * (uve[k] - lin[k]);
     }
+    if (distorted) {
+      // The foot of the blended point on the surface, by Gauss-Newton from the
+      // parametric guess (local: it cannot jump to another part of the face).
+      double xb[3];
+      for (int k = 0; k < 3; ++k) xb[k] = x[k] + shift[k];
+      newton(2, tag, xb, target, 20);
+    }
     for (int k = 0; k < 2; ++k) target[k] = detail::wrap(target[k], p.lo[k], p.period[k]);
     std::vector<double> xyz;
     gmsh::model::getValue(2, tag, {target[0], target[1]}, xyz);
-    double diam = 0;
-    for (int i = 0; i < 3; ++i) {
-      auto a = vertex(f[i]), b = vertex(f[(i + 1) % 3]);
-      diam = std::max(diam, detail::dist3(a.data(), b.data()));
-    }
-    if (xyz.size() != 3 || detail::dist3(xyz.data(), x) > 0.5 * diam) return false;
+    if (xyz.size() != 3 || detail::dist3(xyz.data(), x) > 0.5 * info.diam) return Miss::Far;
     for (int k = 0; k < 3; ++k) y[k] = xyz[k];
-    return true;
+    if (distorted) ++projected;
+    return Miss::None;
+  }
+
+  // A facet's vertex parameters, unwrapped, with their free directions.
+  struct Facet {
+    double uv[3][2];
+    bool free[3][2];
+  };
+
+  // What the parametric placement needs of a facet, computed once.
+  struct FacetInfo {
+    Facet uvf;                 // vertex parameters, unwrapped, free directions
+    Miss miss = Miss::None;    // Seam: no parametric placement (ambiguous or all-pole facet)
+    bool distorted = false;    // the parametrisation is too far from affine over the facet
+    double distortion = 0;     // its measure (below), over the facet's diameter
+    double diam = 0;           // longest edge
+  };
+
+  // Facet `idx` of surface `tag`: vertex parameters in one common period
+  // (see unwrap_shortest; a vertex on a singular point, a sphere's pole or a
+  // cone's apex, is left out of its free direction and takes, at each node,
+  // the λ-weighted parameter of the other vertices: `facet_uv`), and whether
+  // the (u,v)-linear map is distorted: at the facet's centroid and edge
+  // midpoints, S of the linear (u,v) lies more than kDistortion of the facet
+  // from the foot of the straight point on the surface. Near a pole the
+  // parametrisation is far from affine (a facet next to a sphere's pole has its
+  // edge midpoint on a circle of latitude, 16 % of the edge away from the great
+  // circle), and its facets are placed by projection instead.
+  const FacetInfo &facet_info(int tag, std::size_t idx) {
+    auto key = std::make_pair(tag, idx);
+    auto it = facet_info_.find(key);
+    if (it != facet_info_.end()) return it->second;
+    FacetInfo info;
+    const auto &f = surface_facets_.at(tag)[idx];
+    const Param &p = param_info(2, tag);
+    Facet &uvf = info.uvf;
+    bool pole = false;
+    for (int i = 0; i < 3; ++i) {
+      const VParam &vp = vertex_param(2, tag, f[i]);
+      for (int k = 0; k < 2; ++k) uvf.uv[i][k] = vp.uv[k], uvf.free[i][k] = vp.free[k];
+      pole = pole || vp.free[0] || vp.free[1];
+      auto a = vertex(f[i]), b = vertex(f[(i + 1) % 3]);
+      info.diam = std::max(info.diam, detail::dist3(a.data(), b.data()));
+    }
+    bool seam = false;
+    for (int k = 0; k < 2 && info.miss == Miss::None; ++k) {
+      int n = 0;
+      for (int i = 0; i < 3; ++i) n += !uvf.free[i][k];
+      const int u = n > 0 && p.period[k] > 0 ? unwrap_shortest(uvf, k, p.lo[k], p.period[k]) : 0;
+      if (n == 0 || u < 0) info.miss = Miss::Seam;
+      seam = seam || u > 0;
+    }
+    if (seam) ++seam_facets;
+    if (info.miss == Miss::None) {
+      if (pole) ++pole_facets;
+      static const double samples[4][3] = {{1 / 3., 1 / 3., 1 / 3.}, {0.5, 0.5, 0}, {0, 0.5, 0.5}, {0.5, 0, 0.5}};
+      double worst = 0;
+      for (auto &l : samples) {
+        double uv[2], foot[2], xl[3] = {0, 0, 0};
+        facet_uv(uvf, l, uv);
+        for (int i = 0; i < 3; ++i) {
+          auto v = vertex(f[i]);
+          for (int k = 0; k < 3; ++k) xl[k] += l[i] * v[k];
+        }
+        foot[0] = uv[0], foot[1] = uv[1];
+        newton(2, tag, xl, foot, 20);
+        std::vector<double> a, b;
+        gmsh::model::getValue(2, tag, {uv[0], uv[1]}, a);
+        gmsh::model::getValue(2, tag, {foot[0], foot[1]}, b);
+        worst = std::max(worst, detail::dist3(a.data(), b.data()));
+      }
+      info.distortion = worst / info.diam;
+      info.distorted = info.distortion > kDistortion;
+      if (info.distorted) ++distorted_facets;
+    }
+    return facet_info_.emplace(key, info).first->second;
+  }
+
+  bool projected_facet(int tag, std::size_t idx) {
+    const FacetInfo &fi = facet_info(tag, idx);
+    return fi.miss != Miss::None || fi.distorted;
+  }
+  // A mesh edge inside surface `tag` whose nodes are projected: one of its facets is.
+  bool projected_edge(int tag, int64_t a, int64_t b) {
+    for (auto &tf : edge_facets_.at(key(a, b)))
+      if (tf.first == tag && projected_facet(tag, tf.second)) return true;
+    return false;
+  }
+
+  // Unwrap direction k (period `period`) of the facet's non-free vertices to
+  // the shortest arc that holds them: cut the circle of parameters at the
+  // widest gap between them. Returns 1 if that arc crosses the seam (lo ≡ lo +
+  // period: the facet straddles it), 0 if not, -1 if the arc is longer than
+  // half a period (the facet's place on the circle is ambiguous).
+  static int unwrap_shortest(Facet &f, int k, double lo, double period) {
+    std::vector<std::pair<double, int>> w;
+    for (int i = 0; i < 3; ++i)
+      if (!f.free[i][k]) w.push_back({detail::wrap(f.uv[i][k], lo, period), i});
+    std::sort(w.begin(), w.end());
+    const std::size_t n = w.size();
+    std::size_t start = 0;  // the arc starts after the widest gap
+    double gap = w[0].first + period - w[n - 1].first;
+    for (std::size_t i = 1; i < n; ++i)
+      if (w[i].first - w[i - 1].first > gap) gap = w[i].first - w[i - 1].first, start = i;
+    if (period - gap > 0.5 * period) return -1;
+    for (std::size_t i = 0; i < n; ++i) f.uv[w[i].second][k] = w[i].first + (i < start ? period : 0.0);
+    return start != 0;
+  }
+
+  // (u,v) of the facet at barycentric coordinates l: Σ l_i (u,v)_i, where the
+  // parameter of a vertex in a free direction (a pole) is the l-weighted mean
+  // of the other vertices' (so an edge from a pole follows a meridian).
+  static void facet_uv(const Facet &f, const double *l, double *uv) {
+    for (int k = 0; k < 2; ++k) {
+      double sw = 0, s = 0;
+      for (int i = 0; i < 3; ++i)
+        if (!f.free[i][k]) sw += l[i], s += l[i] * f.uv[i][k];
+      const double mean = sw > 1e-300 ? s / sw : 0.0;
+      uv[k] = 0;
+      for (int i = 0; i < 3; ++i) uv[k] += l[i] * (f.free[i][k] ? mean : f.uv[i][k]);
+    }
   }
 
   const LinearMesh &m_;
@@ -504,7 +760,9 @@ class Placer {
   std::map<int, detail::Buckets> curve_buckets_, surface_buckets_;
   std::map<EdgeKey, int> feature_;
   std::map<std::pair<int, int>, Param> params_;
-  std::map<std::tuple<int, int, int64_t>, std::array<double, 2>> vparam_;
+  std::map<std::tuple<int, int, int64_t>, VParam> vparam_;
+  std::map<std::pair<int, std::size_t>, FacetInfo> facet_info_;
+  std::map<EdgeKey, std::vector<std::pair<int, std::size_t>>> edge_facets_;  // (surface, facet index)
 };
 
 // hocurve's projector: places the points of a batch on gmsh entity
@@ -515,7 +773,7 @@ class Placer {
 struct Projector {
   int mesh_dim = 3;
   Placement placement = Placement::Parametric;
-  std::unique_ptr<Placer> placer;  // made by make_mesh for Placement::Parametric
+  std::unique_ptr<Placer> placer;  // made by make_mesh
   int fail_tag = -1;  // tests: fail on this entity tag (of dimension fail_dim)
   int fail_dim = -1;
   std::size_t calls = 0, points = 0;
@@ -530,9 +788,13 @@ struct Projector {
       std::vector<double> xyz(3 * n, 0.0), closest, uv;
       for (size_t i = 0; i < n; ++i)
         for (int k = 0; k < d; ++k) xyz[3 * i + k] = in[d * i + k];
-      if (self->placement == Placement::Parametric && self->placer) {
+      if (self->placer) {
         closest.resize(3 * n);
-        for (size_t i = 0; i < n; ++i) self->placer->place(entity_dim, entity_tag, &xyz[3 * i], &closest[3 * i]);
+        for (size_t i = 0; i < n; ++i)
+          if (self->placement == Placement::Parametric)
+            self->placer->place(entity_dim, entity_tag, &xyz[3 * i], &closest[3 * i]);
+          else
+            self->placer->closest_checked(entity_dim, entity_tag, &xyz[3 * i], &closest[3 * i]);
       } else {
         gmsh::model::getClosestPoint(entity_dim, entity_tag, xyz, closest, uv);
       }
@@ -557,7 +819,7 @@ inline hocurve::Mesh make_mesh(const LinearMesh &m, Projector &proj) {
   mesh.set_boundary(m.facets, m.facet_tags);
   if (!m.edges.empty()) mesh.set_feature_edges(m.edges, m.edge_tags);
   proj.mesh_dim = m.dim;
-  proj.placer.reset(proj.placement == Placement::Parametric ? new Placer(m) : nullptr);
+  proj.placer.reset(new Placer(m));
   Projector *pp = &proj;
   mesh.set_projector([pp](int dim, int tag, std::size_t n, const double *in, double *out) {
     return Projector::callback(pp, dim, tag, n, in, out);
