@@ -17,7 +17,7 @@
 //!   of the matrix ([`BlockSym32`]: 4.4 bytes per entry against 12); PCG's own
 //!   products stay in double precision, so the converged solution is not
 //!   limited by single precision. Same iteration counts.
-//! - Breakdowns (2026-12, a cube whose second matrix has a sliver cell of
+//! - Breakdowns (tests/solvers.rs: a cube whose second matrix has a sliver cell of
 //!   quality 1e-5): the smoother's λ_max estimate, warm-started from the
 //!   previous matrix, missed the sliver's mode, the V-cycle was indefinite
 //!   and PCG stopped with rᵀz < 0 or did not converge. PCG now stops on
