@@ -17,10 +17,24 @@
 //!   of the matrix ([`BlockSym32`]: 4.4 bytes per entry against 12); PCG's own
 //!   products stay in double precision, so the converged solution is not
 //!   limited by single precision. Same iteration counts.
-//! - Indefinite tangents (CIL, NONLINEAR): PCG reports pᵀAp ≤ 0 (or the
-//!   smoother's blocks or the coarse factor fail); systems of at most
-//!   [`FALLBACK_DIRECT_MAX_DOFS`] unknowns are then solved directly (reported
-//!   as 0 iterations), larger ones return [`Error::Solver`].
+//! - Breakdowns (tests/solvers.rs: a cube whose second matrix has a sliver cell of
+//!   quality 1e-5): the smoother's λ_max estimate, warm-started from the
+//!   previous matrix, missed the sliver's mode, the V-cycle was indefinite
+//!   and PCG stopped with rᵀz < 0 or did not converge. PCG now stops on
+//!   rᵀz ≤ 0, a non-finite residual, stagnation ([`STAGNATION_WINDOW`]) or,
+//!   in a warm-started solve slower than 2k + [`CHECKPOINT_SLACK`]
+//!   iterations (k those of the previous solve), a fresh estimate above the
+//!   smoother's by [`UNDERESTIMATE_FACTOR`]. The preconditioner is then
+//!   rebuilt in its safe mode ([`Chebyshev::try_new_safe`]: Gershgorin bound,
+//!   double precision, coarse levels rebuilt; SPD by construction, 1.5–2×
+//!   the iterations) and PCG restarts from its last iterate. None of the
+//!   checks changes the iterates, so a solve that does not fall back is
+//!   bitwise the same as without them.
+//! - Indefinite tangents (CIL, NONLINEAR): PCG reports pᵀAp ≤ 0 (or a
+//!   diagonal block is not positive definite); that, or a failed restart,
+//!   sends systems of at most [`FALLBACK_DIRECT_MAX_DOFS`] unknowns to the
+//!   direct solver, and larger ones return [`Error::Solver`].
+//!   [`SolveStats`] says which solver produced the solution and why.
 //!
 //! Measured 2026-11-23, other jobs paused (`hocurve bench`, bench/README.md),
 //! one increment from a zero start: iterations 10, 9, 13–14, 12, 16 at
@@ -84,8 +98,8 @@ impl Default for IterativeParams {
 }
 
 /// Default [`IterativeParams::stagnation_window`]. Normal solves take 8–100
-/// iterations. Measured on a cube with four sliver cells of quality 1e-5 at
-/// p = 4 (tests/solvers.rs): 375 iterations, 677 with the safe
+/// iterations. Measured on the 6×6×6 cube of `tests/common` with four sliver
+/// cells of quality 1e-5 at p = 4: 375 iterations, 677 with the safe
 /// preconditioner, whose residual fell by only 10–20 % over some windows of
 /// 50 iterations but by 40 % or more over every window of 100.
 pub const STAGNATION_WINDOW: usize = 100;

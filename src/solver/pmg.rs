@@ -207,9 +207,10 @@ impl Chebyshev {
     /// The warm start is what the sequence of load increments relies on, and
     /// its weak point: if the new matrix has a larger eigenvalue on a mode the
     /// previous dominant vector barely contains (a cell that became nearly
-    /// degenerate), two steps do not find it (measured: 3.17 against 3.78 at
-    /// p = 2). PCG then sees rᵀz ≤ 0 or stagnates, and [`super::IterativeSolver`]
-    /// rebuilds with [`Self::try_new_safe`].
+    /// degenerate), two steps do not find it (tests/solvers.rs, one sliver of
+    /// quality 1e-5: hi = 3.14 against λ_max = 3.85 at p = 2, 4.89 against
+    /// 5.37 at p = 4). PCG then sees rᵀz ≤ 0 or crawls, and
+    /// [`super::IterativeSolver`] rebuilds with [`Self::try_new_safe`].
     pub fn try_new_from(
         op: &dyn Operator,
         pattern: &SymmetricCsc,
@@ -239,8 +240,9 @@ impl Chebyshev {
     /// / ratio for a cold power estimate λ; the products in double precision
     /// with the matrix itself (`op` holds it with `values`). hi ≥ λ_max makes
     /// |r| < 1 on the whole spectrum, so the V-cycle is SPD. The bound is
-    /// loose (about 2× the estimate), so the smoothing is weaker: this is
-    /// the fallback, not the default.
+    /// loose (4–6× λ_max at p = 2–4 on the sliver cube of tests/solvers.rs),
+    /// so the smoothing is weaker (1.5–2× the PCG iterations): this is the
+    /// fallback, not the default.
     pub fn try_new_safe(
         op: &SymmetricOperator,
         pattern: &SymmetricCsc,
