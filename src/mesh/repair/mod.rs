@@ -22,8 +22,9 @@
 //!    surface cell that no flip improved and that is a cap whose faces are
 //!    more than 45° apart (so step 1 kept it; coarse meshes of a sphere make
 //!    them at 50–90°) is removed like a cap: the geometry has shown that it
-//!    lies where curving removes the domain. The new facets are measured
-//!    again and another round of flips runs (at most [`MAX_ROUNDS`]).
+//!    lies where curving removes the domain (unless caps are kept: then
+//!    only flips). The new facets are measured again and another round of
+//!    flips runs (at most [`MAX_ROUNDS`]).
 //!
 //! The cells of the result are the cells of the input that no flip touched,
 //! in their order, then the new cells. Each maps to an input cell (see
@@ -111,14 +112,15 @@ pub fn repair(mesh: &LinearMesh, bulge: &[f64]) -> Repaired {
     flip_round(mesh, bulge, origin, mesh).0
 }
 
-/// The repair (module docs): rounds of flips ([`repair`]); after each, the
-/// bad surface cells left that are boundary caps, whatever the angle of their
-/// faces, are removed ([`caps::sweep`]) and the bulges measured again by
+/// The repair (module docs): rounds of flips ([`repair`]); after each, with
+/// `remove_caps`, the bad surface cells left that are boundary caps, whatever
+/// the angle of their faces, are removed ([`caps::sweep`]) and the bulges measured again by
 /// `measure` (one value per facet of the mesh it is given, see
 /// [`crate::geometry::facet_bulges`]) for the next round, at most
 /// [`MAX_ROUNDS`]. Cells no step touched keep their relative order.
 pub fn repair_with<E>(
     mesh: &LinearMesh,
+    remove_caps: bool,
     mut measure: impl FnMut(&LinearMesh) -> Result<Vec<f64>, E>,
 ) -> Result<Repaired, E> {
     let n = mesh.n_cells();
@@ -145,7 +147,7 @@ pub fn repair_with<E>(
         same = (0..r.mesh.n_cells()).map(|i| if i < n_kept { same[r.input_cell[i]] } else { None }).collect();
         origin = o;
         cur = r.mesh;
-        if s.bad_cells_left == 0 || round + 1 == MAX_ROUNDS {
+        if s.bad_cells_left == 0 || !remove_caps || round + 1 == MAX_ROUNDS {
             break;
         }
         let surface: std::collections::HashSet<usize> =
