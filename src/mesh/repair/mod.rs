@@ -150,8 +150,12 @@ pub fn repair_with<E>(
         if s.bad_cells_left == 0 || !remove_caps || round + 1 == MAX_ROUNDS {
             break;
         }
-        let surface: std::collections::HashSet<usize> =
-            bad_cells(&cur, &bulge).into_iter().filter(|(_, a)| a.surface).map(|(c, _)| c).collect();
+        let surface: std::collections::HashSet<usize> = Criteria::new(&cur, &bulge)
+            .bad_cells(&cur)
+            .into_iter()
+            .filter(|(_, a)| a.surface)
+            .map(|(c, _)| c)
+            .collect();
         let Some((next, kept)) = caps::sweep(&cur, |c, _| surface.contains(&c)) else { break };
         summary.surface_caps += cur.n_cells() - next.n_cells();
         origin = kept.iter().map(|&c| std::mem::take(&mut origin[c])).collect();
@@ -185,16 +189,18 @@ fn flip_round(
         return (Repaired { mesh: mesh.clone(), input_cell, summary }, origin);
     }
     let crit = Criteria::new(mesh, bulge);
-    let mut w = Work::new(mesh, &crit, origin);
-    for a in w.assessment.iter().filter(|a| a.is_bad()) {
+    let bad = crit.bad_cells(mesh);
+    if bad.is_empty() {
+        let input_cell = (0..n).collect();
+        return (Repaired { mesh: mesh.clone(), input_cell, summary }, origin);
+    }
+    for (_, a) in &bad {
         summary.bad_cells += 1;
         summary.surface_cells += a.surface as usize;
         summary.bulge_cells += a.bulge as usize;
     }
+    let mut w = Work::new(mesh, &crit, origin);
     for _ in 0..MAX_PASSES {
-        if summary.bad_cells == 0 {
-            break;
-        }
         let bad: Vec<usize> = (0..w.cells.len()).filter(|&c| w.alive[c] && w.assessment[c].is_bad()).collect();
         let mut changed = false;
         for c in bad {
