@@ -41,7 +41,7 @@ pub enum FlipKind {
 /// A candidate flip: cells to remove, cells to add, and the smallest quality
 /// of the added cells.
 #[derive(Debug, Clone)]
-pub struct Flip {
+pub(crate) struct Flip {
     pub kind: FlipKind,
     pub remove: Vec<usize>,
     pub add: Vec<[usize; 4]>,
@@ -52,7 +52,7 @@ const NONE: usize = usize::MAX;
 
 /// A simplex mesh under repair: cells are only ever added (new indices) or
 /// marked dead, so an index names one cell for good.
-pub struct Work<'a> {
+pub(crate) struct Work<'a> {
     pub dim: usize,
     coords: &'a [f64],
     crit: &'a Criteria,

@@ -6,12 +6,13 @@
 //! 1. [`caps`]: boundary caps (tets with two faces on one smooth surface,
 //!    less than 45° apart) are removed, which flips their surface edge:
 //!    purely topological, no geometry needed.
-//! 2. [`repair_with`]: given how far the curved boundary bulges over each boundary
-//!    facet ([`bulge`], measured by projecting a few points of each facet),
-//!    the *bad* cells ([`detect`]: all vertices on one surface that bulges
-//!    into the domain, or a boundary facet bulging past half the height of
-//!    the opposite vertex, itself on the boundary) are removed by local flips ([`flips`]: 2-3, 3-2
-//!    and edge removal in 3D, edge flips in 2D). For each bad cell, the valid
+//! 2. [`repair_with`]: given how far the curved boundary bulges over each
+//!    boundary facet ([`bulge`], measured by projecting a few points of each
+//!    facet), the *bad* cells ([`detect`]: all vertices on one surface that
+//!    bulges into the domain, or a boundary facet bulging past half the
+//!    height of the opposite vertex, itself on the boundary) are removed by
+//!    local flips ([`flips`]: 2-3, 3-2 and edge removal in 3D, edge flips in
+//!    2D). For each bad cell, the valid
 //!    flip that removes it with the best smallest quality of its new cells
 //!    (a quality that counts the bulge, [`detect`]) is applied if that beats
 //!    the smallest quality of the cells it replaces; passes repeat until no
@@ -26,7 +27,7 @@
 //!    only flips). The new facets are measured again and another round of
 //!    flips runs (at most [`MAX_ROUNDS`]).
 //!
-//! The cells of the result are the cells of the input that no flip touched,
+//! The cells of the result are the cells of the input that no step touched,
 //! in their order, then the new cells. Each maps to an input cell (see
 //! [`Repaired::input_cell`]).
 
@@ -94,10 +95,10 @@ impl RepairSummary {
 pub struct Repaired {
     pub mesh: LinearMesh,
     /// For each cell of `mesh`, a cell of the mesh given: itself for a cell no
-    /// flip touched; for a new cell, the cell of the mesh given that contains
-    /// its centroid (flips keep the region the cells cover, so there is one;
-    /// on a tie, the one in which the centroid's smallest barycentric
-    /// coordinate is largest).
+    /// step touched; for a new cell, the cell of the mesh given that contains
+    /// its centroid (flips keep the region the cells cover and cap removals
+    /// only shrink it, so there is one; on a tie, the one in which the
+    /// centroid's smallest barycentric coordinate is largest).
     pub input_cell: Vec<usize>,
     pub summary: RepairSummary,
 }
@@ -114,10 +115,11 @@ pub fn repair(mesh: &LinearMesh, bulge: &[f64]) -> Repaired {
 
 /// The repair (module docs): rounds of flips ([`repair`]); after each, with
 /// `remove_caps`, the bad surface cells left that are boundary caps, whatever
-/// the angle of their faces, are removed ([`caps::sweep`]) and the bulges measured again by
-/// `measure` (one value per facet of the mesh it is given, see
+/// the angle of their faces, are removed ([`caps::sweep`]), and `measure`
+/// gives the bulges of the new mesh (one value per facet, see
 /// [`crate::geometry::facet_bulges`]) for the next round, at most
-/// [`MAX_ROUNDS`]. Cells no step touched keep their relative order.
+/// [`MAX_ROUNDS`]. The cells no step touched come first, in their order,
+/// then the new cells.
 pub fn repair_with<E>(
     mesh: &LinearMesh,
     remove_caps: bool,
