@@ -159,7 +159,11 @@ static inline void curve_and_check_with(const char *name, const FixtureMesh *m, 
   CHECK_OK(mesh, hoc_mesh_set_order(mesh, p, HOC_SPACING_OPTIMAL));
   if (rs.material >= 0) CHECK_OK(mesh, hoc_mesh_set_material(mesh, (HocMaterial)rs.material, 1.0, 0.3));
   if (rs.formulation >= 0) CHECK_OK(mesh, hoc_mesh_set_formulation(mesh, (HocFormulation)rs.formulation));
-  if (rs.keep_caps) CHECK_OK(mesh, hoc_mesh_set_remove_caps(mesh, 0));
+  /* Every cell as given: no caps removed, no repair (which would flip the kept caps). */
+  if (rs.keep_caps) {
+    CHECK_OK(mesh, hoc_mesh_set_remove_caps(mesh, 0));
+    CHECK_OK(mesh, hoc_mesh_set_repair(mesh, 0));
+  }
   /* Invalid cells reported rather than rescued: adaptive stepping would fail at
    * its limit on cells that no step keeps valid (kept caps). */
   if (rs.allow_invalid) CHECK_OK(mesh, hoc_mesh_set_adaptive_stepping(mesh, 0, 6));

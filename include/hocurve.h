@@ -586,7 +586,8 @@ HocStatus hoc_mesh_set_threads(HocMesh *mesh, int n_threads);
  * result.
  *
  * @param[in,out] mesh the handle
- * @param[in] remove 1 to remove caps, 0 to keep every cell as given
+ * @param[in] remove 1 to remove caps, 0 to keep them (and every cell as given
+ *   if the repair is off too, see hoc_mesh_set_repair)
  * @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
  */
 HocStatus hoc_mesh_set_remove_caps(HocMesh *mesh, int remove);
@@ -600,8 +601,10 @@ HocStatus hoc_mesh_set_remove_caps(HocMesh *mesh, int remove);
  * vertices fixed. The run
  * projects a few points of every tagged facet to measure the bulges, then
  * removes such cells by local flips (2-3, 3-2, edge removal; edge flips in
- * 2D) that keep the boundary facets and vertices: the curved mesh may have
- * other cells than the straight one (see hoc_mesh_cell_count,
+ * 2D) that keep the boundary facets and vertices; unless caps are kept
+ * (hoc_mesh_set_remove_caps), such a cell that no flip helps and that is a
+ * cap whose faces meet at more than 45° is removed like a cap. The curved
+ * mesh may then have other cells than the straight one (see hoc_mesh_cell_count,
  * hoc_mesh_get_input_cells and hoc_mesh_repair_summary). Takes effect at
  * the next run.
  *

@@ -104,8 +104,10 @@ pub struct CurveOptions {
     /// surface that bulges into the domain, or a boundary facet whose bulge
     /// exceeds half the height of the opposite vertex, itself on the
     /// boundary) are removed by local
-    /// flips, which keep the boundary (see [`mod@crate::mesh::repair`]). Needs
-    /// one projection of a few points per tagged facet.
+    /// flips, which keep the boundary (see [`mod@crate::mesh::repair`]), and,
+    /// with `remove_caps`, caps whose faces meet at more than 45° that no flip
+    /// fixes are removed too. Needs one projection of a few points per tagged
+    /// facet.
     pub repair: bool,
     /// Adaptive load stepping ([`solve_increments`]): step back and halve an
     /// increment that inverts a cell (certified check) or whose Newton
@@ -353,7 +355,7 @@ pub fn curve(
         if opts.remove_caps { remove_boundary_caps(&linear) } else { (linear, (0..n_input_cells).collect()) };
     let removed_caps = n_input_cells - input_cell.len();
     let (linear, input_cell, repair_summary) = if opts.repair {
-        let r = repair_with(&linear, |m| crate::geometry::facet_bulges(m, projector))?;
+        let r = repair_with(&linear, opts.remove_caps, |m| crate::geometry::facet_bulges(m, projector))?;
         (r.mesh, r.input_cell.iter().map(|&c| input_cell[c]).collect(), r.summary)
     } else {
         (linear, input_cell, RepairSummary::default())

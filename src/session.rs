@@ -278,8 +278,9 @@ impl Session {
     /// Curve the mesh in `increments` load increments. On error the session
     /// is exactly as before the call.
     pub fn run(&mut self, increments: usize) -> Result<()> {
-        // The caps are already removed from `linear`; fibres are per input cell.
-        let mut opts = CurveOptions { increments, remove_caps: false, ..self.opts.clone() };
+        // The caps are already removed from `linear` (another sweep finds none;
+        // `remove_caps` still lets the repair remove caps); fibres are per input cell.
+        let mut opts = CurveOptions { increments, ..self.opts.clone() };
         if let Some(f) = &self.opts.fibres {
             opts.fibres = Some(self.input_cell.iter().map(|&c| f[c]).collect());
         }

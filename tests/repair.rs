@@ -96,7 +96,7 @@ fn cells_inside_the_shell_of_a_sphere_cavity_are_found_and_removed() {
     let apex = *cell.iter().find(|v| !f.contains(v)).unwrap();
     assert!(bulge[k] > height(&mesh, *f, apex), "bulge {} height {}", bulge[k], height(&mesh, *f, apex));
 
-    let r = repair_with(&mesh, |m| facet_bulges(m, &projector)).unwrap();
+    let r = repair_with(&mesh, true, |m| facet_bulges(m, &projector)).unwrap();
     let s = r.summary;
     assert_eq!((s.surface_caps, s.cells_removed, s.cells_added, s.bad_cells_left), (2, 2, 0, 0), "{s:?}");
     assert_eq!(r.input_cell, (2..15).collect::<Vec<_>>());

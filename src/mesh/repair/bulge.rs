@@ -18,7 +18,7 @@
 
 use std::collections::{HashMap, HashSet};
 
-use super::geom::{cross, dot, facet_key, norm, sub, FacetKey};
+use super::geom::{boundary_facets, cross, dot, facet_key, facet_of, norm, sub, FacetKey};
 use crate::mesh::LinearMesh;
 
 /// Points to project and where each goes.
@@ -51,16 +51,9 @@ pub fn bulge_samples(mesh: &LinearMesh) -> BulgeSamples {
     // Tags of the boundary faces (None: untagged) at each boundary edge.
     let tagged: HashMap<FacetKey, i32> =
         mesh.facets.chunks_exact(3).zip(&mesh.facet_tags).map(|(f, &t)| (facet_key(f), t)).collect();
-    let mut count: HashMap<FacetKey, u8> = HashMap::new();
-    for c in mesh.cells.chunks_exact(4) {
-        for k in 0..4 {
-            let f: Vec<usize> = (0..4).filter(|&j| j != k).map(|j| c[j]).collect();
-            *count.entry(facet_key(&f)).or_default() += 1;
-        }
-    }
     let mut edge_tags: HashMap<[usize; 2], Option<Option<i32>>> = HashMap::new();
-    for (f, _) in count.iter().filter(|(_, &n)| n == 1) {
-        let t = tagged.get(f).copied();
+    for f in boundary_facets(mesh) {
+        let t = tagged.get(&f).copied();
         for e in [[f[0], f[1]], [f[1], f[2]], [f[0], f[2]]] {
             edge_tags
                 .entry(e)
@@ -117,8 +110,8 @@ pub fn facet_bulges(mesh: &LinearMesh, samples: &BulgeSamples, projected: &[[f64
     let mut seen = HashSet::new();
     for c in mesh.cells.chunks_exact(d + 1) {
         for k in 0..=d {
-            let f: Vec<usize> = (0..=d).filter(|&j| j != k).map(|j| c[j]).collect();
-            if let Some(&i) = index.get(&facet_key(&f)) {
+            if let Some(&i) = index.get(&facet_of(c, k)) {
+                let f: Vec<usize> = (0..=d).filter(|&j| j != k).map(|j| c[j]).collect();
                 if !seen.insert(i) {
                     continue;
                 }

@@ -32,9 +32,9 @@
 //!   simplex (√(2/3), √3/2): the height left once the bulge is taken out;
 //! * q_mr − 1 for a surface cell.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
-use super::geom::{cross, facet_key, norm, orient, sub, FacetKey};
+use super::geom::{boundary_facets, cross, facet_key, facet_of, norm, orient, sub, FacetKey};
 use crate::mesh::LinearMesh;
 
 /// A boundary facet whose bulge exceeds this fraction of the height of the
@@ -75,8 +75,9 @@ pub struct Criteria {
     /// Per vertex: the tags of the facets at it, each with whether one of
     /// those facets bulges into the domain.
     surfaces: Vec<Vec<(i32, bool)>>,
-    /// Per vertex: on the boundary (a vertex of a facet with one cell,
-    /// tagged or not), hence fixed in the solve.
+    /// The facets with one cell (tagged or not): the boundary, which flips keep.
+    boundary: HashSet<FacetKey>,
+    /// Per vertex: on the boundary, hence fixed in the solve.
     boundary_vertex: Vec<bool>,
 }
 
@@ -97,20 +98,33 @@ impl Criteria {
             }
             map.insert(facet_key(f), b);
         }
+        let boundary: HashSet<FacetKey> = boundary_facets(mesh).into_iter().collect();
         let mut boundary_vertex = vec![false; mesh.n_vertices()];
-        for (f, _) in facet_counts(mesh).into_iter().filter(|&(_, n)| n == 1) {
+        for f in &boundary {
             for &v in f.iter().filter(|&&v| v != usize::MAX) {
                 boundary_vertex[v] = true;
             }
         }
-        Criteria { dim: d, bulge: map, surfaces, boundary_vertex }
+        Criteria { dim: d, bulge: map, surfaces, boundary, boundary_vertex }
+    }
+
+    /// Whether facet `f` is on the boundary of the mesh the criteria were made for.
+    pub fn is_boundary(&self, f: &FacetKey) -> bool {
+        self.boundary.contains(f)
+    }
+
+    /// Whether the cell can be bad at all: a bad cell has all its vertices
+    /// on the boundary (a surface cell by definition, a bulge cell because
+    /// its facet and the opposite vertex are).
+    pub fn may_be_bad(&self, cell: &[usize]) -> bool {
+        cell.iter().all(|&v| self.boundary_vertex[v])
     }
 
     /// Assess the cell with vertices `cell` (`dim + 1`, positively oriented
     /// unless degenerate: then the quality is −∞) at coordinates `coords`
-    /// (`dim` per vertex). `boundary(f)` says whether facet f is a boundary
-    /// facet (only those carry a bulge).
-    pub fn assess(&self, coords: &[f64], cell: &[usize], boundary: impl Fn(&FacetKey) -> bool) -> Assessment {
+    /// (`dim` per vertex), in the mesh the criteria were made for or one
+    /// with the same boundary.
+    pub fn assess(&self, coords: &[f64], cell: &[usize]) -> Assessment {
         let d = self.dim;
         let x: Vec<[f64; 3]> = cell
             .iter()
@@ -137,10 +151,9 @@ impl Criteria {
         let mut quality = mean_ratio;
         let mut bulge = false;
         for k in 0..=d {
-            let f: Vec<usize> = (0..=d).filter(|&j| j != k).map(|j| cell[j]).collect();
-            let key = facet_key(&f);
+            let key = facet_of(cell, k);
             let Some(&b) = self.bulge.get(&key) else { continue };
-            if b <= 0.0 || !boundary(&key) || !self.boundary_vertex[cell[k]] {
+            if b <= 0.0 || !self.boundary.contains(&key) || !self.boundary_vertex[cell[k]] {
                 continue;
             }
             let y: Vec<[f64; 3]> = (0..=d).filter(|&j| j != k).map(|j| x[j]).collect();
@@ -176,27 +189,24 @@ impl Criteria {
 /// assessment, given the bulge of each of its facets.
 pub fn bad_cells(mesh: &LinearMesh, bulge: &[f64]) -> Vec<(usize, Assessment)> {
     let crit = Criteria::new(mesh, bulge);
-    let d = mesh.dim;
-    let count = facet_counts(mesh);
-    mesh.cells
-        .chunks_exact(d + 1)
-        .enumerate()
-        .map(|(i, c)| (i, crit.assess(&mesh.coords, c, |f| count.get(f) == Some(&1))))
-        .filter(|(_, a)| a.is_bad())
-        .collect()
+    crit.bad_cells(mesh)
 }
 
-/// Number of cells on each facet of `mesh`.
-fn facet_counts(mesh: &LinearMesh) -> HashMap<FacetKey, u8> {
-    let d = mesh.dim;
-    let mut count: HashMap<FacetKey, u8> = HashMap::new();
-    for c in mesh.cells.chunks_exact(d + 1) {
-        for k in 0..=d {
-            let f: Vec<usize> = (0..=d).filter(|&j| j != k).map(|j| c[j]).collect();
-            *count.entry(facet_key(&f)).or_default() += 1;
-        }
+impl Criteria {
+    /// The bad cells of `mesh` (the mesh the criteria were made for).
+    pub fn bad_cells(&self, mesh: &LinearMesh) -> Vec<(usize, Assessment)> {
+        use rayon::prelude::*;
+        let d = mesh.dim;
+        let bad: Vec<(usize, Assessment)> = mesh
+            .cells
+            .par_chunks_exact(d + 1)
+            .enumerate()
+            .filter(|(_, c)| self.may_be_bad(c))
+            .map(|(i, c)| (i, self.assess(&mesh.coords, c)))
+            .filter(|(_, a)| a.is_bad())
+            .collect();
+        bad
     }
-    count
 }
 
 fn dist2(a: [f64; 3], b: [f64; 3]) -> f64 {

@@ -19,7 +19,7 @@
 use std::collections::HashMap;
 
 use super::detect::{Assessment, Criteria};
-use super::geom::{facet_key, orient, FacetKey};
+use super::geom::{facet_key, facet_of, orient, FacetKey};
 use crate::mesh::LinearMesh;
 
 /// Largest ring of tets around an edge that edge removal considers.
@@ -41,7 +41,7 @@ pub enum FlipKind {
 /// A candidate flip: cells to remove, cells to add, and the smallest quality
 /// of the added cells.
 #[derive(Debug, Clone)]
-pub struct Flip {
+pub(crate) struct Flip {
     pub kind: FlipKind,
     pub remove: Vec<usize>,
     pub add: Vec<[usize; 4]>,
@@ -52,7 +52,7 @@ const NONE: usize = usize::MAX;
 
 /// A simplex mesh under repair: cells are only ever added (new indices) or
 /// marked dead, so an index names one cell for good.
-pub struct Work<'a> {
+pub(crate) struct Work<'a> {
     pub dim: usize,
     coords: &'a [f64],
     crit: &'a Criteria,
@@ -66,8 +66,6 @@ pub struct Work<'a> {
     facets: HashMap<FacetKey, [usize; 2]>,
     /// 3D: edge → number of cells around it.
     edges: HashMap<[usize; 2], u32>,
-    /// Facets with one cell at the start: the boundary, which flips keep.
-    boundary: std::collections::HashSet<FacetKey>,
 }
 
 impl<'a> Work<'a> {
@@ -95,27 +93,21 @@ impl<'a> Work<'a> {
             origin: Vec::with_capacity(n),
             facets: HashMap::with_capacity(2 * n),
             edges: HashMap::new(),
-            boundary: Default::default(),
         };
         for (c, o) in cells.into_iter().zip(origin) {
             w.insert(c, o, false);
         }
-        w.boundary = w.facets.iter().filter(|(_, c)| c[1] == NONE).map(|(f, _)| *f).collect();
-        let boundary = &w.boundary;
-        w.assessment = w.cells.iter().map(|c| crit.assess(w.coords, &c[..=d], |f| boundary.contains(f))).collect();
+        w.assessment = w.cells.iter().map(|c| crit.assess(w.coords, &c[..=d])).collect();
         w
     }
 
     fn assess(&self, cell: &[usize]) -> Assessment {
-        self.crit.assess(self.coords, cell, |f| self.boundary.contains(f))
+        self.crit.assess(self.coords, cell)
     }
 
     fn local_facets(&self, c: [usize; 4]) -> impl Iterator<Item = (usize, FacetKey)> + '_ {
         let d = self.dim;
-        (0..=d).map(move |k| {
-            let f: Vec<usize> = (0..=d).filter(|&j| j != k).map(|j| c[j]).collect();
-            (k, facet_key(&f))
-        })
+        (0..=d).map(move |k| (k, facet_of(&c[..=d], k)))
     }
 
     fn insert(&mut self, c: [usize; 4], origin: Vec<usize>, assess: bool) {

@@ -3,6 +3,20 @@
 /// A facet as its sorted vertices (`usize::MAX` in the third slot in 2D).
 pub type FacetKey = [usize; 3];
 
+/// Key of the facet of `cell` (`dim + 1` vertices) opposite its local vertex `k`.
+pub fn facet_of(cell: &[usize], k: usize) -> FacetKey {
+    let mut key = [usize::MAX; 3];
+    let mut i = 0;
+    for (j, &v) in cell.iter().enumerate() {
+        if j != k {
+            key[i] = v;
+            i += 1;
+        }
+    }
+    key[..i].sort_unstable();
+    key
+}
+
 /// Key of facet `f` (2 or 3 vertices).
 pub fn facet_key(f: &[usize]) -> FacetKey {
     let mut k = [usize::MAX; 3];
@@ -47,4 +61,27 @@ pub fn barycentric(dim: usize, x: &[[f64; 3]], p: [f64; 3]) -> [f64; 4] {
         *lk = orient(dim, &y) / total;
     }
     l
+}
+
+/// The facets of `mesh` that belong to one cell only (its boundary), sorted.
+/// Counted by sorting the keys of all cell facets, not hashing them.
+pub fn boundary_facets(mesh: &crate::mesh::LinearMesh) -> Vec<FacetKey> {
+    use rayon::prelude::*;
+    let d = mesh.dim;
+    let mut all: Vec<FacetKey> =
+        mesh.cells.par_chunks_exact(d + 1).flat_map_iter(|c| (0..=d).map(move |k| facet_of(c, k))).collect();
+    all.par_sort_unstable();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < all.len() {
+        let mut j = i + 1;
+        while j < all.len() && all[j] == all[i] {
+            j += 1;
+        }
+        if j == i + 1 {
+            out.push(all[i]);
+        }
+        i = j;
+    }
+    out
 }

@@ -6,12 +6,13 @@
 //! 1. [`caps`]: boundary caps (tets with two faces on one smooth surface,
 //!    less than 45° apart) are removed, which flips their surface edge:
 //!    purely topological, no geometry needed.
-//! 2. [`repair_with`]: given how far the curved boundary bulges over each boundary
-//!    facet ([`bulge`], measured by projecting a few points of each facet),
-//!    the *bad* cells ([`detect`]: all vertices on one surface that bulges
-//!    into the domain, or a boundary facet bulging past half the height of
-//!    the opposite vertex, itself on the boundary) are removed by local flips ([`flips`]: 2-3, 3-2
-//!    and edge removal in 3D, edge flips in 2D). For each bad cell, the valid
+//! 2. [`repair_with`]: given how far the curved boundary bulges over each
+//!    boundary facet ([`bulge`], measured by projecting a few points of each
+//!    facet), the *bad* cells ([`detect`]: all vertices on one surface that
+//!    bulges into the domain, or a boundary facet bulging past half the
+//!    height of the opposite vertex, itself on the boundary) are removed by
+//!    local flips ([`flips`]: 2-3, 3-2 and edge removal in 3D, edge flips in
+//!    2D). For each bad cell, the valid
 //!    flip that removes it with the best smallest quality of its new cells
 //!    (a quality that counts the bulge, [`detect`]) is applied if that beats
 //!    the smallest quality of the cells it replaces; passes repeat until no
@@ -22,10 +23,11 @@
 //!    surface cell that no flip improved and that is a cap whose faces are
 //!    more than 45° apart (so step 1 kept it; coarse meshes of a sphere make
 //!    them at 50–90°) is removed like a cap: the geometry has shown that it
-//!    lies where curving removes the domain. The new facets are measured
-//!    again and another round of flips runs (at most [`MAX_ROUNDS`]).
+//!    lies where curving removes the domain (unless caps are kept: then
+//!    only flips). The new facets are measured again and another round of
+//!    flips runs (at most [`MAX_ROUNDS`]).
 //!
-//! The cells of the result are the cells of the input that no flip touched,
+//! The cells of the result are the cells of the input that no step touched,
 //! in their order, then the new cells. Each maps to an input cell (see
 //! [`Repaired::input_cell`]).
 
@@ -93,10 +95,10 @@ impl RepairSummary {
 pub struct Repaired {
     pub mesh: LinearMesh,
     /// For each cell of `mesh`, a cell of the mesh given: itself for a cell no
-    /// flip touched; for a new cell, the cell of the mesh given that contains
-    /// its centroid (flips keep the region the cells cover, so there is one;
-    /// on a tie, the one in which the centroid's smallest barycentric
-    /// coordinate is largest).
+    /// step touched; for a new cell, the cell of the mesh given that contains
+    /// its centroid (flips keep the region the cells cover and cap removals
+    /// only shrink it, so there is one; on a tie, the one in which the
+    /// centroid's smallest barycentric coordinate is largest).
     pub input_cell: Vec<usize>,
     pub summary: RepairSummary,
 }
@@ -111,14 +113,16 @@ pub fn repair(mesh: &LinearMesh, bulge: &[f64]) -> Repaired {
     flip_round(mesh, bulge, origin, mesh).0
 }
 
-/// The repair (module docs): rounds of flips ([`repair`]); after each, the
-/// bad surface cells left that are boundary caps, whatever the angle of their
-/// faces, are removed ([`caps::sweep`]) and the bulges measured again by
-/// `measure` (one value per facet of the mesh it is given, see
+/// The repair (module docs): rounds of flips ([`repair`]); after each, with
+/// `remove_caps`, the bad surface cells left that are boundary caps, whatever
+/// the angle of their faces, are removed ([`caps::sweep`]), and `measure`
+/// gives the bulges of the new mesh (one value per facet, see
 /// [`crate::geometry::facet_bulges`]) for the next round, at most
-/// [`MAX_ROUNDS`]. Cells no step touched keep their relative order.
+/// [`MAX_ROUNDS`]. The cells no step touched come first, in their order,
+/// then the new cells.
 pub fn repair_with<E>(
     mesh: &LinearMesh,
+    remove_caps: bool,
     mut measure: impl FnMut(&LinearMesh) -> Result<Vec<f64>, E>,
 ) -> Result<Repaired, E> {
     let n = mesh.n_cells();
@@ -145,11 +149,15 @@ pub fn repair_with<E>(
         same = (0..r.mesh.n_cells()).map(|i| if i < n_kept { same[r.input_cell[i]] } else { None }).collect();
         origin = o;
         cur = r.mesh;
-        if s.bad_cells_left == 0 || round + 1 == MAX_ROUNDS {
+        if s.bad_cells_left == 0 || !remove_caps || round + 1 == MAX_ROUNDS {
             break;
         }
-        let surface: std::collections::HashSet<usize> =
-            bad_cells(&cur, &bulge).into_iter().filter(|(_, a)| a.surface).map(|(c, _)| c).collect();
+        let surface: std::collections::HashSet<usize> = Criteria::new(&cur, &bulge)
+            .bad_cells(&cur)
+            .into_iter()
+            .filter(|(_, a)| a.surface)
+            .map(|(c, _)| c)
+            .collect();
         let Some((next, kept)) = caps::sweep(&cur, |c, _| surface.contains(&c)) else { break };
         summary.surface_caps += cur.n_cells() - next.n_cells();
         origin = kept.iter().map(|&c| std::mem::take(&mut origin[c])).collect();
@@ -183,16 +191,18 @@ fn flip_round(
         return (Repaired { mesh: mesh.clone(), input_cell, summary }, origin);
     }
     let crit = Criteria::new(mesh, bulge);
-    let mut w = Work::new(mesh, &crit, origin);
-    for a in w.assessment.iter().filter(|a| a.is_bad()) {
+    let bad = crit.bad_cells(mesh);
+    if bad.is_empty() {
+        let input_cell = (0..n).collect();
+        return (Repaired { mesh: mesh.clone(), input_cell, summary }, origin);
+    }
+    for (_, a) in &bad {
         summary.bad_cells += 1;
         summary.surface_cells += a.surface as usize;
         summary.bulge_cells += a.bulge as usize;
     }
+    let mut w = Work::new(mesh, &crit, origin);
     for _ in 0..MAX_PASSES {
-        if summary.bad_cells == 0 {
-            break;
-        }
         let bad: Vec<usize> = (0..w.cells.len()).filter(|&c| w.alive[c] && w.assessment[c].is_bad()).collect();
         let mut changed = false;
         for c in bad {
