@@ -100,7 +100,7 @@ const STALLED: f64 = 1e-3;
 const MAX_ITERATIONS: usize = 100;
 
 /// Everything per order that the patches share.
-struct Stage<'a> {
+struct PatchContext<'a> {
     dim: usize,
     /// Sample rules: quadrature of degree 2p with the nodal lattice of order
     /// p (first round), or of order 2p (later rounds).
@@ -153,7 +153,7 @@ pub fn optimize(
     report.target_cells = (0..nc).filter(|&c| bad(c, 0, cell_quality, certified)).count();
     if opts.enabled && report.target_cells > 0 {
         report.ran = true;
-        let stage = Stage::new(basis, sampling);
+        let ctx = PatchContext::new(basis, sampling);
         // Projector calls are serialised: a host's callback is called from
         // one thread at a time.
         let projector = projector.filter(|_| opts.slide).map(Mutex::new);
@@ -168,7 +168,7 @@ pub fn optimize(
             report.rounds += 1;
             let patches = build_patches(mesh, &adj, &seeds, layers);
             report.patches += patches.len();
-            let rule = if round == 0 { &stage.coarse } else { &stage.fine };
+            let rule = if round == 0 { &ctx.coarse } else { &ctx.fine };
             let (coords, constraint) = (&mesh.coords, &mesh.constraint);
             let entity = |n: usize| match constraint[n] {
                 NodeConstraint::OnEntity { dim, tag } => Some((dim, tag)),
@@ -177,7 +177,7 @@ pub fn optimize(
             let results: Vec<Option<Vec<f64>>> = patches
                 .par_iter()
                 .map(|p| {
-                    stage.optimize_patch(
+                    ctx.optimize_patch(
                         coords,
                         &mesh.cells,
                         mesh.nodes_per_cell(),
@@ -191,7 +191,7 @@ pub fn optimize(
                     )
                 })
                 .collect();
-            let dim = stage.dim;
+            let dim = ctx.dim;
             for (p, result) in patches.iter().zip(results) {
                 let Some(x) = result else { continue };
                 for (i, &n) in p.free.iter().chain(&p.sliding).enumerate() {
@@ -201,7 +201,7 @@ pub fn optimize(
                     mesh.coords[n * dim..(n + 1) * dim].copy_from_slice(&x[i * dim..(i + 1) * dim]);
                 }
                 for &c in &p.cells {
-                    let s = stage.cell_state(&mesh.coords, mesh.cell(c), straight);
+                    let s = ctx.cell_state(&mesh.coords, mesh.cell(c), straight);
                     cell_quality[c] = s.q;
                     certified[c] = s.cert;
                     touched[c] = true;
@@ -217,10 +217,10 @@ pub fn optimize(
     report
 }
 
-impl<'a> Stage<'a> {
-    fn new(basis: &LagrangeBasis, sampling: &'a ElementCache) -> Stage<'a> {
+impl<'a> PatchContext<'a> {
+    fn new(basis: &LagrangeBasis, sampling: &'a ElementCache) -> PatchContext<'a> {
         let p = basis.order();
-        Stage {
+        PatchContext {
             dim: basis.simplex().dim(),
             coarse: sample_rule(basis, p),
             fine: sample_rule(basis, 2 * p),
