@@ -103,11 +103,10 @@ pub struct CurveOptions {
     /// stay valid once curved with their vertices fixed (all vertices on one
     /// surface that bulges into the domain, or a boundary facet whose bulge
     /// exceeds half the height of the opposite vertex, itself on the
-    /// boundary) are removed by local
-    /// flips, which keep the boundary (see [`mod@crate::mesh::repair`]), and,
-    /// with `remove_caps`, caps whose faces meet at more than 45° that no flip
-    /// fixes are removed too. Needs one projection of a few points per tagged
-    /// facet.
+    /// boundary) are removed by local flips, which keep the boundary (see
+    /// [`mod@crate::mesh::repair`]); with `remove_caps`, such caps whose faces
+    /// meet at more than 45° that no flip fixes are removed too. Needs one
+    /// projection of a few points per tagged facet (timed with `elevate`).
     pub repair: bool,
     /// Adaptive load stepping ([`solve_increments`]): step back and halve an
     /// increment that inverts a cell (certified check) or whose Newton

@@ -6,7 +6,8 @@
 //!   radius 0.70 (CharacteristicLengthMax 0.5, Min 0.1), a tet with all four
 //!   vertices on the sphere whose two sphere faces meet at 54°, so the caps
 //!   step keeps it; its bulge is 93 % of its height over one face. Curving
-//!   fails at p = 2..4 ("cell 41 is inverted"); an edge removal fixes it.
+//!   fails at p = 2..4 ("cell 41 is inverted"); the repair removes it as a
+//!   cap or, with caps kept, an edge removal replaces it.
 //! * `sphere_cavity_shell.msh`: the 15 tets around cells 4 and 996 of the
 //!   cavity of radius 1.10 (CharacteristicLengthMax 0.8): two adjacent tets
 //!   with all vertices on the sphere, one of them a cap at 86°, the other
@@ -54,13 +55,25 @@ fn opts(repair: bool) -> CurveOptions {
 }
 
 #[test]
-fn a_mesh_that_fails_to_curve_curves_after_an_edge_removal() {
+fn a_mesh_that_fails_to_curve_curves_after_the_repair() {
     let (mesh, projector) = load("sphere_cavity_cap.msh", 0.70);
     match curve(&mesh, &projector, &opts(false), &mut |_| true) {
         Err(Error::InvalidElement(m)) => assert!(m.contains("after halving the step 6 times"), "{m}"),
         other => panic!("expected the run to fail without repair, got {:?}", other.map(|c| c.report.quality)),
     }
+    // By default the bad cell, a cap at 54°, is removed as a cap.
     let c = curve(&mesh, &projector, &opts(true), &mut |_| true).unwrap();
+    let r = &c.report;
+    assert_eq!((r.repair.bad_cells, r.repair.surface_cells, r.repair.surface_caps), (1, 1, 1), "{:?}", r.repair);
+    assert_eq!((r.repair.flips(), r.repair.cells_removed, r.repair.cells_added), (0, 1, 0));
+    assert_eq!((r.cells, &r.input_cell[..]), (6, &[1, 2, 3, 4, 5, 6][..]));
+    assert_eq!((r.quality.n_invalid, r.quality.n_certified_invalid), (0, 0));
+}
+
+#[test]
+fn with_caps_kept_an_edge_removal_repairs_the_same_mesh() {
+    let (mesh, projector) = load("sphere_cavity_cap.msh", 0.70);
+    let c = curve(&mesh, &projector, &CurveOptions { remove_caps: false, ..opts(true) }, &mut |_| true).unwrap();
     let r = &c.report;
     assert_eq!((r.repair.bad_cells, r.repair.surface_cells, r.repair.edge_removals), (1, 1, 1), "{:?}", r.repair);
     assert_eq!((r.repair.cells_removed, r.repair.cells_added, r.repair.bad_cells_left), (4, 4, 0));
@@ -124,9 +137,15 @@ fn the_session_repairs_at_each_run_and_maps_the_new_cells() {
     s.set_optimize(true);
     s.run(10).unwrap();
     let report = s.report().unwrap();
-    assert_eq!(report.repair.edge_removals, 1);
+    assert_eq!((report.repair.surface_caps, report.cells), (1, 6));
+    assert_eq!(s.input_cells(), &[1, 2, 3, 4, 5, 6]);
+    assert_eq!(s.input_cells(), &report.input_cell[..]);
+    // With the caps kept, the run flips instead; input cells still map the current mesh.
+    s.set_remove_caps(false).unwrap();
+    assert_eq!(s.input_cells(), &[0, 1, 2, 3, 4, 5, 6], "a straight mesh again");
+    s.run(10).unwrap();
+    assert_eq!(s.report().unwrap().repair.edge_removals, 1);
     assert_eq!(s.input_cells().len(), s.mesh().n_cells());
-    assert_eq!(&s.input_cells()[..3], &report.input_cell[..3]);
     assert!(s.input_cells().iter().all(|&c| c < mesh.n_cells()));
     assert_eq!(s.quality().n_certified_invalid, 0);
 }
@@ -162,6 +181,8 @@ fn the_c_abi_turns_the_repair_on_and_off_and_reports_it() {
         assert_eq!(hoc_mesh_set_boundary(m, mesh.n_facets(), facets.as_ptr(), mesh.facet_tags.as_ptr()), HOC_OK);
         assert_eq!(hoc_mesh_set_projector(m, Some(sphere_070), std::ptr::null_mut()), HOC_OK);
         assert_eq!(hoc_mesh_set_order(m, 2, HOC_SPACING_OPTIMAL), HOC_OK);
+        // Caps kept: the repair flips (by default it would remove the cell as a cap).
+        assert_eq!(hoc_mesh_set_remove_caps(m, 0), HOC_OK);
         assert_eq!(hoc_mesh_set_repair(m, 2), HOC_ERROR_INVALID_ARGUMENT);
         assert_eq!(hoc_mesh_set_repair(m, 0), HOC_OK);
         assert_eq!(hoc_mesh_run_increments(m, 10), HOC_ERROR_INVALID_ELEMENT);

@@ -531,11 +531,13 @@ fn one_call(r: &mut Bytes, slots: &mut [Slot; 2], bases: &[Base], runs: &mut usi
             13 => {
                 // The setters that keep the nodes first: only the last call's
                 // failure is checked against the nodes from before the three.
-                name = "set_threads+condensation+caps";
+                name = "set_threads+condensation+repair+caps";
                 let st = hoc_mesh_set_threads(h, r.int(&[0, 1, 2, -1, c_int::MIN]));
                 check("set_threads", st, h);
                 let st = hoc_mesh_set_static_condensation(h, r.int(&[1, 0, 2, -1]));
                 check("set_static_condensation", st, h);
+                let st = hoc_mesh_set_repair(h, r.int(&[1, 0, 2, -1]));
+                check("set_repair", st, h);
                 hoc_mesh_set_remove_caps(h, r.int(&[0, 1, 2, -1]))
             }
             14 | 15 => {
@@ -552,6 +554,10 @@ fn one_call(r: &mut Bytes, slots: &mut [Slot; 2], bases: &[Base], runs: &mut usi
                 let qp = if r.chance(8) { null_mut() } else { q.as_mut_ptr() };
                 let st = hoc_mesh_quality(h, qp);
                 check("quality", st, h);
+                let mut rep = std::mem::MaybeUninit::<HocRepair>::uninit();
+                let rp = if r.chance(8) { null_mut() } else { rep.as_mut_ptr() };
+                let st = hoc_mesh_repair_summary(h, rp);
+                check("repair_summary", st, h);
                 let nc = if h.is_null() { 0 } else { counts(h).1 };
                 let mut out = vec![0.0; nc + 1];
                 let n = r.out_count(nc);

@@ -19,13 +19,14 @@
 //!    cell is bad or no flip improves (at most [`MAX_PASSES`]). A bad cell no
 //!    flip improves is left as it is. Boundary facets, vertices and
 //!    orientations are kept; every accepted flip strictly raises the sorted
-//!    vector of qualities, so no configuration comes back. Then a bad
-//!    surface cell that no flip improved and that is a cap whose faces are
-//!    more than 45° apart (so step 1 kept it; coarse meshes of a sphere make
-//!    them at 50–90°) is removed like a cap: the geometry has shown that it
-//!    lies where curving removes the domain (unless caps are kept: then
-//!    only flips). The new facets are measured again and another round of
-//!    flips runs (at most [`MAX_ROUNDS`]).
+//!    vector of qualities, so no configuration comes back. Before the flips,
+//!    a bad surface cell that is a cap whose faces are more than 45° apart
+//!    (so step 1 kept it; coarse meshes of a sphere or a torus make them at
+//!    50–90°) is removed like a cap: the geometry has shown that the surface
+//!    is smooth there and bulges into the cell, and a flip would keep the
+//!    surface edge the cap's two faces share, along which curving squeezes
+//!    whatever cells are there (unless caps are kept: then only flips). The
+//!    new facets are measured again before the next sweep.
 //!
 //! The cells of the result are the cells of the input that no step touched,
 //! in their order, then the new cells. Each maps to an input cell (see
@@ -50,8 +51,8 @@ use geom::barycentric;
 /// Passes over the bad cells at most, in one round of flips.
 pub const MAX_PASSES: usize = 20;
 
-/// Rounds of flips at most ([`repair_with`]).
-pub const MAX_ROUNDS: usize = 4;
+/// Sweeps of surface caps at most ([`repair_with`]).
+pub const MAX_ROUNDS: usize = 8;
 
 /// What [`repair`] did.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -70,10 +71,10 @@ pub struct RepairSummary {
     pub edge_removals: usize,
     /// Edge flips (2D).
     pub flips_22: usize,
-    /// Bad surface cells that no flip improved and that were boundary caps
-    /// whose faces meet at more than [`caps::CAP_MAX_NORMAL_ANGLE_DEG`] (so
-    /// the caps step kept them): removed like caps, their surface edge
-    /// flipped to their chord ([`repair_with`]).
+    /// Bad surface cells that were boundary caps whose faces meet at more
+    /// than [`caps::CAP_MAX_NORMAL_ANGLE_DEG`] (so the caps step kept them):
+    /// removed like caps, their surface edge flipped to their chord
+    /// ([`repair_with`]).
     pub surface_caps: usize,
     /// Cells of the mesh given that are not in the result.
     pub cells_removed: usize,
@@ -113,13 +114,13 @@ pub fn repair(mesh: &LinearMesh, bulge: &[f64]) -> Repaired {
     flip_round(mesh, bulge, origin, mesh).0
 }
 
-/// The repair (module docs): rounds of flips ([`repair`]); after each, with
-/// `remove_caps`, the bad surface cells left that are boundary caps, whatever
-/// the angle of their faces, are removed ([`caps::sweep`]), and `measure`
-/// gives the bulges of the new mesh (one value per facet, see
-/// [`crate::geometry::facet_bulges`]) for the next round, at most
-/// [`MAX_ROUNDS`]. The cells no step touched come first, in their order,
-/// then the new cells.
+/// The repair (module docs). With `remove_caps`, the bad surface cells that
+/// are boundary caps, whatever the angle of their faces, are removed first
+/// ([`caps::sweep`], one sweep of vertex-disjoint caps at a time, at most
+/// [`MAX_ROUNDS`]); `measure` gives the bulges of each new mesh (one value
+/// per facet, see [`crate::geometry::facet_bulges`]). Then one round of flips
+/// ([`repair`]) removes the other bad cells. The cells no step touched come
+/// first, in their order, then the new cells.
 pub fn repair_with<E>(
     mesh: &LinearMesh,
     remove_caps: bool,
@@ -127,49 +128,47 @@ pub fn repair_with<E>(
 ) -> Result<Repaired, E> {
     let n = mesh.n_cells();
     let mut cur = mesh.clone();
-    // Per cell of `cur`: the cells of `mesh` it overlaps, and whether it is one of them unchanged.
+    // Per cell of `cur`: the cells of `mesh` it overlaps, and which one it is if unchanged.
     let mut origin: Vec<Vec<usize>> = (0..n).map(|c| vec![c]).collect();
     let mut same: Vec<Option<usize>> = (0..n).map(Some).collect();
     let mut summary = RepairSummary::default();
+    let mut bulge = measure(&cur)?;
     for round in 0..MAX_ROUNDS {
-        let bulge = measure(&cur)?;
-        let (r, o) = flip_round(&cur, &bulge, origin, mesh);
-        let s = r.summary;
+        let bad = Criteria::new(&cur, &bulge).bad_cells(&cur);
         if round == 0 {
-            summary.bad_cells = s.bad_cells;
-            summary.surface_cells = s.surface_cells;
-            summary.bulge_cells = s.bulge_cells;
+            summary.bad_cells = bad.len();
+            summary.surface_cells = bad.iter().filter(|(_, a)| a.surface).count();
+            summary.bulge_cells = bad.iter().filter(|(_, a)| a.bulge).count();
         }
-        summary.flips_23 += s.flips_23;
-        summary.flips_32 += s.flips_32;
-        summary.edge_removals += s.edge_removals;
-        summary.flips_22 += s.flips_22;
-        summary.bad_cells_left = s.bad_cells_left;
-        let n_kept = r.mesh.n_cells() - s.cells_added;
-        same = (0..r.mesh.n_cells()).map(|i| if i < n_kept { same[r.input_cell[i]] } else { None }).collect();
-        origin = o;
-        cur = r.mesh;
-        if s.bad_cells_left == 0 || !remove_caps || round + 1 == MAX_ROUNDS {
+        let surface: std::collections::HashSet<usize> =
+            bad.iter().filter(|(_, a)| a.surface).map(|&(c, _)| c).collect();
+        if !remove_caps || surface.is_empty() {
             break;
         }
-        let surface: std::collections::HashSet<usize> = Criteria::new(&cur, &bulge)
-            .bad_cells(&cur)
-            .into_iter()
-            .filter(|(_, a)| a.surface)
-            .map(|(c, _)| c)
-            .collect();
         let Some((next, kept)) = caps::sweep(&cur, |c, _| surface.contains(&c)) else { break };
         summary.surface_caps += cur.n_cells() - next.n_cells();
         origin = kept.iter().map(|&c| std::mem::take(&mut origin[c])).collect();
         same = kept.iter().map(|&c| same[c]).collect();
         cur = next;
+        bulge = measure(&cur)?;
     }
+    let (r, o) = flip_round(&cur, &bulge, origin, mesh);
+    let s = r.summary;
+    summary.flips_23 = s.flips_23;
+    summary.flips_32 = s.flips_32;
+    summary.edge_removals = s.edge_removals;
+    summary.flips_22 = s.flips_22;
+    summary.bad_cells_left = s.bad_cells_left;
+    let n_kept = r.mesh.n_cells() - s.cells_added;
+    let same: Vec<Option<usize>> =
+        (0..r.mesh.n_cells()).map(|i| if i < n_kept { same[r.input_cell[i]] } else { None }).collect();
+    let cur = r.mesh;
     let untouched = same.iter().flatten().count();
     summary.cells_removed = n - untouched;
     summary.cells_added = cur.n_cells() - untouched;
     let d = mesh.dim;
     let input_cell = (0..cur.n_cells())
-        .map(|c| same[c].unwrap_or_else(|| locate(mesh, &cur.cells[c * (d + 1)..(c + 1) * (d + 1)], &origin[c])))
+        .map(|c| same[c].unwrap_or_else(|| locate(mesh, &cur.cells[c * (d + 1)..(c + 1) * (d + 1)], &o[c])))
         .collect();
     Ok(Repaired { mesh: cur, input_cell, summary })
 }
