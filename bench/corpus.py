@@ -216,6 +216,19 @@ def summary(results):
             f"{len({r['case'] for r in results})} cases; {sum(r['time_s'] for r in results):.0f} s of hocurve")
 
 
+def error_kinds(results):
+    """{message with its numbers replaced by N: (count, one full message)}, most frequent first."""
+    import re
+
+    kinds = {}
+    for r in results:
+        if r["error"]:
+            key = re.sub(r"\d+(\.\d+)?(e-?\d+)?", "N", short_error(r["error"]))
+            n, ex = kinds.get(key, (0, r["error"]))
+            kinds[key] = (n + 1, ex)
+    return dict(sorted(kinds.items(), key=lambda kv: -kv[1][0]))
+
+
 def write_results(out_dir, results):
     out_dir = Path(out_dir)
     (out_dir / "results.json").write_text(json.dumps(results, indent=1) + "\n")
@@ -271,11 +284,12 @@ def main(argv=None):
     print()
     print(distribution(results))
     print()
-    errors = sorted({r["error"] for r in results if r["error"]})
-    if errors:
-        print("error messages:")
-        for e in errors:
-            print(f"  {e}")
+    kinds = error_kinds(results)
+    if kinds:
+        print("errors (numbers replaced by N; one full message each):")
+        for pattern, (k, example) in kinds.items():
+            print(f"  {k:3d} x {pattern}")
+            print(f"        e.g. {example}")
         print()
     print(summary(results))
     if a.markdown:

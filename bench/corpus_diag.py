@@ -65,7 +65,9 @@ def inverted_cells(gmsh, curved, q=8):
     out = []
     for b in np.where(det.min(axis=1) <= 0)[0]:
         corners = [tuple(xyz[3 * where[int(n)]:3 * where[int(n)] + 3]) for n in nodes[b][:4]]
-        out.append((corners, float(det[b].min()), int(b)))
+        u, v, w = pts[int(det[b].argmin())]
+        bary = (1 - u - v - w, u, v, w)  # gmsh's corners 0..3 are at (0,0,0), (1,0,0), (0,1,0), (0,0,1)
+        out.append((corners, float(det[b].min()), int(b), [k for k in range(4) if abs(bary[k]) < 1e-12]))
     gmsh.clear()
     return out, len(tags)
 
@@ -84,7 +86,21 @@ def boundary_faces(gmsh, linear):
     return faces
 
 
-def describe(corners, faces, curved_shapes):
+def where(zero, bf):
+    """Where the lattice minimum of det J is: interior, on a face (boundary tag or interior), edge, vertex."""
+    if not zero:
+        return "inside the cell"
+    if len(zero) == 1:
+        k = zero[0]
+        return f"on boundary face {bf[k]}" if k in bf else "on an interior face"
+    if len(zero) == 2:
+        ends = [k for k in range(4) if k not in zero]
+        on = [bf[k] for k in zero if k in bf]  # faces containing the edge are those opposite the zero corners
+        return f"on an edge ({'of boundary faces ' + str(sorted(on)) if on else 'interior'})" if ends else ""
+    return "at a corner"
+
+
+def describe(corners, faces, curved_shapes, zero=()):
     key = [tuple(np.round(c, 10)) for c in corners]
     on = sum(any(distance(s, c) < 1e-7 for s in curved_shapes) for c in corners)
     bf = {}
@@ -102,6 +118,7 @@ def describe(corners, faces, curved_shapes):
         h = abs(np.dot(P[k] - f[0], normals[k]))
         e = max(np.linalg.norm(f[i] - f[j]) for i in range(3) for j in range(i + 1, 3))
         parts.append(f"height over face {t}: {h / e:.2f} x its longest edge")
+    parts.append("det J lowest " + where(list(zero), bf))
     kind = f"{len(bf)} boundary faces"
     if len(bf) == 2:
         (k1, t1), (k2, t2) = bf.items()
@@ -152,8 +169,8 @@ def main(argv=None):
           f"certified-invalid {rep['certified_invalid_elements']}, min Q3 {rep['min_q3']:.3f}; "
           f"{len(bad)} with det J <= 0 at a lattice point:")
     kinds = Counter()
-    for corners, dmin, cell in bad:
-        kind, text = describe(corners, faces, curved_shapes)
+    for corners, dmin, cell, zero in bad:
+        kind, text = describe(corners, faces, curved_shapes, zero)
         kinds[kind] += 1
         print(f"  cell {cell}: min det J {dmin:.2e}; {text}")
     for kind, k in kinds.most_common():
