@@ -12,8 +12,10 @@ cad folder's README), three runs, each timed as a whole (wall seconds):
              ILE, 1 increment, 12 elements per 2π of curvature, parametric placement).
              When it stops on an inverted cell it writes no mesh; it is then run
              again with --adaptive off (the step is kept, the mesh written with its
-             invalid cells) so that the table can say how many cells are invalid;
-             that run's time is shown in brackets.
+             invalid cells) so that the table can say how many cells are invalid
+             ("fails; min Q3"); that run's time is shown in brackets. "N caps" in
+             the cells column: cells hocurve removed as boundary caps (the
+             measured mesh has that many fewer cells).
   elastic    gmsh MODEL -3 -order P -setnumber Mesh.HighOrderOptimize 3   (elastic analogy)
   optimiser  the same with Mesh.HighOrderOptimize 2   (elastic analogy, then the optimiser)
 
@@ -25,9 +27,15 @@ same version as the libgmsh hocurve-occt is built on.
 
 Every output is measured by the same tool, `target/release/hocurve quality
 OUT.msh --report R.json`: min Q3 (scaled Jacobian), invalid cells (sampled) and
-certified invalid cells (det J bounds). Results are kept per run in
+certified invalid cells (det J bounds; shown when they differ). "‡": gmsh
+logged an error (its optimiser: "Failed to reach critical value") but wrote
+its mesh, which is measured. Results are kept per run in
 DIR/results/*.json; a later call reuses them unless --force, so a filter
-(--models/--orders/--tools) re-runs only part of the table. The markdown table
+(--models/--orders/--tools) re-runs only part of the table. Runs not in DIR
+are taken from --reuse (default bench/parts-results.json, the committed rows
+of the last full run), so e.g. `--tools hocurve` re-measures hocurve and
+keeps gmsh's rows without the hour gmsh takes; --save FILE writes the
+table's rows (to update bench/parts-results.json). The markdown table
 (all results in DIR for the models and orders asked) goes to stdout and, with
 --markdown, to a file. A run longer than --timeout seconds is killed and shown
 as "timeout".
@@ -194,8 +202,12 @@ def table(rows, models, orders):
             rs = [by.get((name, p, t)) for t in TOOLS]
             if not any(rs):
                 continue
-            cells = sorted({r["cells"] for r in rs if r and r.get("cells")})
+            # Cells of the linear mesh: gmsh's, and hocurve-occt's before its cap removal.
+            cells = sorted({r.get("cells_given", r.get("cells")) for r in rs if r and r.get("cells")})
             cs = " / ".join(str(c) for c in cells) if cells else "–"
+            h = rs[0]
+            if h and h.get("cells_given") and h.get("cells") and h["cells"] != h["cells_given"]:
+                cs += f" ({h['cells_given'] - h['cells']} caps)"
             line = [name, str(p), cs]
             for r in rs:
                 line += list(fmt_q(r))
@@ -204,7 +216,7 @@ def table(rows, models, orders):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+    ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--models", default=",".join(m[0] for m in MODELS))
     ap.add_argument("--orders", default="2,3,4")
@@ -219,6 +231,9 @@ def main():
     ap.add_argument("--keep-meshes", action="store_true", help="keep the curved .msh files (large)")
     ap.add_argument("--table-only", action="store_true", help="print the table of the kept results, run nothing")
     ap.add_argument("--markdown", help="also write the table to this file")
+    ap.add_argument("--reuse", default=os.path.join(ROOT, "bench", "parts-results.json"),
+                    help="rows for runs not in DIR (default bench/parts-results.json)")
+    ap.add_argument("--save", help="write the rows of the table (JSON) to this file")
     args = ap.parse_args()
 
     models = args.models.split(",")
@@ -263,12 +278,22 @@ def main():
                     print(f"compare_parts:   {row['status']}, {row['seconds']} s, min Q3 {row.get('min_q3')}, "
                           f"invalid {row.get('invalid')}", file=sys.stderr, flush=True)
 
-    rows = []
+    rows = {}
     for fn in sorted(os.listdir(resdir)):
         if fn.endswith(".json"):
             with open(os.path.join(resdir, fn)) as f:
-                rows.append(json.load(f))
+                r = json.load(f)
+            rows[(r["model"], r["p"], r["tool"])] = r
+    if args.reuse and os.path.exists(args.reuse):
+        with open(args.reuse) as f:
+            for r in json.load(f):
+                rows.setdefault((r["model"], r["p"], r["tool"]), r)
+    rows = [rows[k] for k in sorted(rows) if k[0] in models and k[1] in orders]
     md = table(rows, models, orders)
+    if args.save:
+        with open(args.save, "w") as f:
+            json.dump(rows, f, indent=1)
+            f.write("\n")
     print(md)
     if args.markdown:
         with open(args.markdown, "w") as f:
