@@ -106,6 +106,12 @@ typedef struct {
   size_t nodes_moved;
   size_t patches;
   /**
+   * Cells still invalid after the first rounds that were split at their
+   * centroid (each into dim + 1 cells; hoc_mesh_get_input_cells maps
+   * the pieces to the input cell).
+   */
+  size_t cells_split;
+  /**
    * Certified-invalid (or undecided) cells before and after the stage.
    */
   size_t invalid_before;

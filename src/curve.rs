@@ -362,7 +362,7 @@ pub fn curve(
     let topo = Topology::new(&linear)?;
     let nodes = NodeSet::new(topo.simplex, opts.order, opts.spacing);
     let mut mesh = HighOrderMesh::elevate(&linear, &topo, &nodes, opts.spacing)?;
-    let straight = mesh.coords.clone();
+    let mut straight = mesh.coords.clone();
     timings.elevate = t0.elapsed().as_secs_f64();
 
     // 3. Project the boundary nodes.
@@ -466,9 +466,9 @@ pub fn curve(
     timings.quality = t.elapsed().as_secs_f64();
     let t = Instant::now();
     tick(Stage::Optimize, 0, 1)?;
-    let optimization = optimize::optimize(
+    let (optimization, parent) = optimize::optimize(
         &mut mesh,
-        &straight,
+        &mut straight,
         &basis,
         &cache,
         &opts.optimize,
@@ -476,6 +476,10 @@ pub fn curve(
         &mut cell_quality,
         &mut certified,
     );
+    // Cells split by the optimisation come from the cell at `parent`.
+    let input_cell: Vec<usize> = parent.iter().map(|&c| input_cell[c]).collect();
+    let fibres: Vec<_> = parent.iter().map(|&c| fibres[c]).collect();
+    let ti = ti.map(|_| &fibres[..]);
     if optimization.ran && ti.is_some() {
         // Q4, Q5 of the moved cells need their fibres.
         cell_quality = quality::cell_qualities(&cache, &mesh.coords, Some(&straight), &mesh.cells, ti);

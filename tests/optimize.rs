@@ -125,7 +125,7 @@ fn sliding_boundary_nodes_on_the_surface_makes_valid_what_interior_moves_cannot(
     let (mesh, projector) = gmsh_sphere_cavity("sphere_cavity_cap_gmsh.msh", 0.6);
     // The repair stage would remove this tet before curving: leave it.
     let mut opts = CurveOptions { order: 2, repair: false, ..Default::default() };
-    opts.optimize.slide = false;
+    (opts.optimize.slide, opts.optimize.split) = (false, false);
     match run(&mesh, &projector, &opts) {
         Err(Error::InvalidElement(m)) => assert!(m.contains("after optimisation"), "{m}"),
         other => panic!("expected interior moves alone to fail, got {:?}", other.map(|c| c.report.quality)),
@@ -145,5 +145,40 @@ fn sliding_boundary_nodes_on_the_surface_makes_valid_what_interior_moves_cannot(
         .filter(|&n| c.mesh.coords[3 * n..3 * n + 3] != placed.mesh.coords[3 * n..3 * n + 3])
         .count();
     assert!(slid > 0, "no boundary node slid");
+    assert_on_sphere(&c, 0.6);
+}
+
+/// The same tet, with the boundary nodes held: split at its centroid, its
+/// pieces have interior edges through the bad edge's ends, and moving
+/// their nodes makes it valid. The pieces map to the input cell of the
+/// tet they came from, and the domain is the same.
+#[test]
+fn splitting_a_cell_interior_moves_cannot_fix_makes_it_valid() {
+    let (mesh, projector) = gmsh_sphere_cavity("sphere_cavity_cap_gmsh.msh", 0.6);
+    let mut opts = CurveOptions { order: 2, repair: false, ..Default::default() };
+    opts.optimize.slide = false;
+    let c = run(&mesh, &projector, &opts).unwrap();
+    let o = &c.report.optimization;
+    assert!(o.cells_split > 0, "{o:?}");
+    assert_eq!(c.report.quality.n_certified_invalid, 0);
+    assert_eq!(c.mesh.n_cells(), mesh.n_cells() + 3 * o.cells_split);
+    assert_eq!(c.report.input_cell.len(), c.mesh.n_cells());
+    // Each input cell is covered once: its pieces' straight volumes add up to its volume.
+    let volume = |x: &[f64], v: &[usize]| {
+        let d = |a: usize| {
+            [x[3 * v[a]] - x[3 * v[0]], x[3 * v[a] + 1] - x[3 * v[0] + 1], x[3 * v[a] + 2] - x[3 * v[0] + 2]]
+        };
+        let (a, b, e) = (d(1), d(2), d(3));
+        (a[0] * (b[1] * e[2] - b[2] * e[1]) - a[1] * (b[0] * e[2] - b[2] * e[0]) + a[2] * (b[0] * e[1] - b[1] * e[0]))
+            / 6.0
+    };
+    let mut sum = vec![0.0; mesh.n_cells()];
+    for (k, &i) in c.report.input_cell.iter().enumerate() {
+        sum[i] += volume(&c.straight, c.mesh.cell(k));
+    }
+    for (i, s) in sum.iter().enumerate() {
+        let v = volume(&mesh.coords, &mesh.cells[4 * i..4 * i + 4]).abs();
+        assert!((s - v).abs() < 1e-12 * v.max(1.0), "input cell {i}: {s} vs {v}");
+    }
     assert_on_sphere(&c, 0.6);
 }

@@ -106,6 +106,8 @@ int main(int argc, char **argv) {
     mesh.run_increments(increments);
     auto t_curve = std::chrono::steady_clock::now();
     const HocQuality q = mesh.quality();
+    const HocOptimization opt = mesh.optimization();
+    const HocRepair rep = mesh.repair_summary();
     const auto cc = mesh.cell_count();
     const std::size_t nodes = mesh.node_count();
     mesh.write(output);
@@ -145,7 +147,19 @@ int main(int argc, char **argv) {
         << ",\n  \"placement_projected\": " << (pl ? pl->projected : 0)
         << ",\n  \"distorted_facets\": " << (pl ? pl->distorted_facets : 0)
         << ",\n  \"pole_facets\": " << (pl ? pl->pole_facets : 0) << ",\n  \"seam_facets\": " << (pl ? pl->seam_facets : 0)
-        << ",\n  \"projector_calls\": " << proj.calls << ",\n  \"seconds\": {\"total\": "
+        << ",\n  \"projector_calls\": " << proj.calls
+        << ",\n  \"repair\": {\"bad_cells\": " << rep.bad_cells << ", \"flips\": "
+        << rep.flips_23 + rep.flips_32 + rep.edge_removals + rep.flips_22 << ", \"surface_caps\": " << rep.surface_caps
+        << ", \"cells_removed\": " << rep.cells_removed << ", \"cells_added\": " << rep.cells_added
+        << ", \"bad_cells_left\": " << rep.bad_cells_left << "}"
+        << ",\n  \"elastic_stop\": " << (opt.elastic_stopped ? json_number(opt.elastic_load) : std::string("null"))
+        << ",\n  \"optimization\": {\"ran\": " << (opt.ran ? "true" : "false") << ", \"target_cells\": "
+        << opt.target_cells << ", \"cells_touched\": " << opt.cells_touched << ", \"nodes_moved\": "
+        << opt.nodes_moved << ", \"patches\": " << opt.patches << ", \"cells_split\": " << opt.cells_split << ", \"invalid_before\": " << opt.invalid_before
+        << ", \"invalid_after\": " << opt.invalid_after << ", \"min_q3_before\": " << json_number(opt.min_q3_before)
+        << ", \"min_q3_after\": " << json_number(opt.min_q3_after) << ", \"seconds\": " << json_number(opt.seconds)
+        << "}"
+        << ",\n  \"solver_fallbacks\": " << mesh.solver_fallbacks() << ",\n  \"seconds\": {\"total\": "
         << json_number(secs(t0, t_end)) << ", \"mesh\": " << json_number(secs(t0, t_mesh))
         << ", \"curve\": " << json_number(secs(t_mesh, t_curve)) << "}\n}\n";
       if (!r) throw std::runtime_error("cannot write " + report);

@@ -188,6 +188,10 @@ pub struct HocOptimization {
     pub cells_touched: usize,
     pub nodes_moved: usize,
     pub patches: usize,
+    /// Cells still invalid after the first rounds that were split at their
+    /// centroid (each into dim + 1 cells; hoc_mesh_get_input_cells maps
+    /// the pieces to the input cell).
+    pub cells_split: usize,
     /// Certified-invalid (or undecided) cells before and after the stage.
     pub invalid_before: usize,
     pub invalid_after: usize,
@@ -833,6 +837,7 @@ pub unsafe extern "C" fn hoc_mesh_optimization(mesh: *const HocMesh, out: *mut H
                     cells_touched: o.cells_touched,
                     nodes_moved: o.nodes_moved,
                     patches: o.patches,
+                    cells_split: o.cells_split,
                     invalid_before: o.invalid_before,
                     invalid_after: o.invalid_after,
                     min_q3_before: o.min_q3_before,

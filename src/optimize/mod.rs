@@ -20,7 +20,9 @@
 pub mod energy;
 pub mod lbfgs;
 pub mod patch;
+pub mod split;
 
+use std::collections::BTreeMap;
 use std::sync::Mutex;
 use std::time::Instant;
 
@@ -46,6 +48,10 @@ pub struct OptimizeOptions {
     /// Let the high-order boundary nodes of a patch slide on their entity
     /// when moving the interior nodes leaves a cell invalid (default on).
     pub slide: bool,
+    /// Split the cells still invalid after the first rounds at their
+    /// centroid ([`split`]), so that interior nodes reach every point of
+    /// them, and optimise again (default on).
+    pub split: bool,
 }
 
 /// Default Q3 below which a valid cell is optimised.
@@ -53,7 +59,7 @@ pub const DEFAULT_THRESHOLD: f64 = 0.2;
 
 impl Default for OptimizeOptions {
     fn default() -> Self {
-        OptimizeOptions { enabled: true, threshold: DEFAULT_THRESHOLD, slide: true }
+        OptimizeOptions { enabled: true, threshold: DEFAULT_THRESHOLD, slide: true, split: true }
     }
 }
 
@@ -72,6 +78,8 @@ pub struct OptimizeReport {
     pub patches: usize,
     /// Rounds of growing patches.
     pub rounds: usize,
+    /// Cells split at their centroid ([`split`]); each became d + 1 cells.
+    pub cells_split: usize,
     /// Certified-invalid (or undecided) cells before and after.
     pub invalid_before: usize,
     pub invalid_after: usize,
@@ -81,12 +89,17 @@ pub struct OptimizeReport {
     pub seconds: f64,
 }
 
-/// Node-neighbour layers of the patches of each round.
-const LAYERS: [usize; 5] = [1, 2, 3, 5, 8];
+/// Node-neighbour layers of the patches of the first rounds, in which cells
+/// valid but below the threshold are selected too.
+const FIRST_LAYERS: [usize; 2] = [1, 2];
 
-/// Rounds in which cells that are valid but below the threshold are still
-/// selected (after that, only invalid ones).
-const QUALITY_ROUNDS: usize = 2;
+/// Node-neighbour layers of the later rounds, after the split, on the
+/// invalid cells only.
+const LATER_LAYERS: [usize; 5] = [1, 2, 3, 5, 8];
+
+/// The later rounds stop after this many rounds in a row that leave as many
+/// invalid cells (larger patches cost more and seldom help then).
+const FUTILE_ROUNDS: usize = 2;
 
 /// Untangling: the regularisation is δ² = ε(ε − J_min) while J_min < ε.
 const UNTANGLE_EPS: f64 = 0.1;
@@ -129,68 +142,73 @@ impl CellState {
 /// are the figures of every cell on entry and are updated for the cells
 /// that changed. With a `projector`, the high-order boundary nodes of a
 /// patch that interior moves cannot make valid slide on their entity.
+///
+/// Cells split at their centroid ([`OptimizeOptions::split`]) add cells
+/// and nodes: `mesh`, `straight`, `cell_quality` and `certified` grow, and
+/// the second value returned gives, for each cell of the result, the cell
+/// of `mesh` on entry it is part of (itself for a cell not split).
 #[allow(clippy::too_many_arguments)]
 pub fn optimize(
     mesh: &mut HighOrderMesh,
-    straight: &[f64],
+    straight: &mut Vec<f64>,
     basis: &LagrangeBasis,
     sampling: &ElementCache,
     opts: &OptimizeOptions,
     projector: Option<&dyn Projector>,
-    cell_quality: &mut [ElementQuality],
-    certified: &mut [CertifiedJacobian],
-) -> OptimizeReport {
+    cell_quality: &mut Vec<ElementQuality>,
+    certified: &mut Vec<CertifiedJacobian>,
+) -> (OptimizeReport, Vec<usize>) {
     let t0 = Instant::now();
+    let invalid_count = |cert: &[CertifiedJacobian]| cert.iter().filter(|c| c.verdict != Verdict::Valid).count();
     let mut report = OptimizeReport {
-        invalid_before: certified.iter().filter(|c| c.verdict != Verdict::Valid).count(),
+        invalid_before: invalid_count(certified),
         min_q3_before: cell_quality.iter().map(|q| q.q3).fold(f64::INFINITY, f64::min),
         ..Default::default()
     };
-    let bad = |c: usize, round: usize, q: &[ElementQuality], cert: &[CertifiedJacobian]| {
-        cert[c].verdict != Verdict::Valid || (round < QUALITY_ROUNDS && q[c].q3 < opts.threshold)
+    let mut parent: Vec<usize> = (0..mesh.n_cells()).collect();
+    let selected = |quality: bool, q: &[ElementQuality], cert: &[CertifiedJacobian]| -> Vec<usize> {
+        (0..cert.len())
+            .filter(|&c| cert[c].verdict != Verdict::Valid || (quality && q[c].q3 < opts.threshold))
+            .collect()
     };
-    let nc = mesh.n_cells();
-    report.target_cells = (0..nc).filter(|&c| bad(c, 0, cell_quality, certified)).count();
+    report.target_cells = selected(true, cell_quality, certified).len();
     if opts.enabled && report.target_cells > 0 {
         report.ran = true;
         let ctx = PatchContext::new(basis, sampling);
         // Projector calls are serialised: a host's callback is called from
         // one thread at a time.
         let projector = projector.filter(|_| opts.slide).map(Mutex::new);
-        let adj = NodeCells::new(mesh);
-        let mut touched = vec![false; nc];
+        let mut touched = vec![false; mesh.n_cells()];
         let mut moved = vec![false; mesh.n_nodes()];
-        for (round, &layers) in LAYERS.iter().enumerate() {
-            let seeds: Vec<usize> = (0..nc).filter(|&c| bad(c, round, cell_quality, certified)).collect();
-            if seeds.is_empty() {
-                break;
-            }
+        let mut round = |mesh: &mut HighOrderMesh,
+                         straight: &[f64],
+                         seeds: &[usize],
+                         layers: usize,
+                         rule: &SampleRule,
+                         cell_quality: &mut [ElementQuality],
+                         certified: &mut [CertifiedJacobian],
+                         report: &mut OptimizeReport| {
+            let adj = NodeCells::new(mesh);
+            let patches = build_patches(mesh, &adj, seeds, layers);
             report.rounds += 1;
-            let patches = build_patches(mesh, &adj, &seeds, layers);
             report.patches += patches.len();
-            let rule = if round == 0 { &ctx.coarse } else { &ctx.fine };
-            let (coords, constraint) = (&mesh.coords, &mesh.constraint);
-            let entity = |n: usize| match constraint[n] {
-                NodeConstraint::OnEntity { dim, tag } => Some((dim, tag)),
-                _ => None,
+            touched.resize(mesh.n_cells(), false);
+            moved.resize(mesh.n_nodes(), false);
+            let results: Vec<Option<Vec<f64>>> = {
+                let (coords, constraint) = (&mesh.coords, &mesh.constraint);
+                let entity = |n: usize| match constraint[n] {
+                    NodeConstraint::OnEntity { dim, tag } => Some((dim, tag)),
+                    _ => None,
+                };
+                let (cq, cert) = (&*cell_quality, &*certified);
+                patches
+                    .par_iter()
+                    .map(|p| {
+                        let cells = (&mesh.cells[..], mesh.nodes_per_cell());
+                        ctx.optimize_patch(coords, cells, straight, p, rule, cq, cert, projector.as_ref(), &entity)
+                    })
+                    .collect()
             };
-            let results: Vec<Option<Vec<f64>>> = patches
-                .par_iter()
-                .map(|p| {
-                    ctx.optimize_patch(
-                        coords,
-                        &mesh.cells,
-                        mesh.nodes_per_cell(),
-                        straight,
-                        p,
-                        rule,
-                        cell_quality,
-                        certified,
-                        projector.as_ref(),
-                        &entity,
-                    )
-                })
-                .collect();
             let dim = ctx.dim;
             for (p, result) in patches.iter().zip(results) {
                 let Some(x) = result else { continue };
@@ -207,14 +225,47 @@ pub fn optimize(
                     touched[c] = true;
                 }
             }
+        };
+        // First rounds: invalid and low-quality cells, the cheap sample rule first.
+        for (k, &layers) in FIRST_LAYERS.iter().enumerate() {
+            let seeds = selected(true, cell_quality, certified);
+            if seeds.is_empty() {
+                break;
+            }
+            let rule = if k == 0 { &ctx.coarse } else { &ctx.fine };
+            round(mesh, straight, &seeds, layers, rule, cell_quality, certified, &mut report);
+        }
+        // The cells still invalid: split, then later rounds on the invalid ones.
+        let invalid = selected(false, cell_quality, certified);
+        if opts.split && !invalid.is_empty() {
+            parent = split::split_at_centroids(mesh, straight, basis, &invalid);
+            report.cells_split = invalid.len();
+            for c in invalid.iter().copied().chain(cell_quality.len()..mesh.n_cells()) {
+                let s = ctx.cell_state(&mesh.coords, mesh.cell(c), straight);
+                if c < cell_quality.len() {
+                    (cell_quality[c], certified[c]) = (s.q, s.cert);
+                } else {
+                    cell_quality.push(s.q);
+                    certified.push(s.cert);
+                }
+            }
+        }
+        let mut futile = 0;
+        for &layers in &LATER_LAYERS {
+            let seeds = selected(false, cell_quality, certified);
+            if seeds.is_empty() || futile == FUTILE_ROUNDS {
+                break;
+            }
+            round(mesh, straight, &seeds, layers, &ctx.fine, cell_quality, certified, &mut report);
+            futile = if invalid_count(certified) < seeds.len() { 0 } else { futile + 1 };
         }
         report.cells_touched = touched.iter().filter(|&&t| t).count();
         report.nodes_moved = moved.iter().filter(|&&m| m).count();
     }
-    report.invalid_after = certified.iter().filter(|c| c.verdict != Verdict::Valid).count();
+    report.invalid_after = invalid_count(certified);
     report.min_q3_after = cell_quality.iter().map(|q| q.q3).fold(f64::INFINITY, f64::min);
     report.seconds = t0.elapsed().as_secs_f64();
-    report
+    (report, parent)
 }
 
 impl<'a> PatchContext<'a> {
@@ -247,8 +298,7 @@ impl<'a> PatchContext<'a> {
     fn optimize_patch(
         &self,
         coords: &[f64],
-        cells: &[usize],
-        npc: usize,
+        (cells, npc): (&[usize], usize),
         straight: &[f64],
         patch: &Patch,
         rule: &SampleRule,
@@ -263,11 +313,11 @@ impl<'a> PatchContext<'a> {
         let dim = self.dim;
         let cell = |c: usize| &cells[c * npc..(c + 1) * npc];
         let mut elements: Vec<ElementSamples> = Vec::with_capacity(patch.cells.len());
-        let mut h = f64::INFINITY;
+        let mut sizes = Vec::with_capacity(patch.cells.len());
         for &c in &patch.cells {
             let xs = gather(straight, cell(c), dim);
             elements.push(rule.element(&xs)?);
-            h = h.min(element_size(dim, &xs));
+            sizes.push(mean_edge(dim, &xs));
         }
         let moving: Vec<usize> = patch.free.iter().chain(&patch.sliding).copied().collect();
         let local: Vec<usize> = patch
@@ -275,6 +325,19 @@ impl<'a> PatchContext<'a> {
             .iter()
             .flat_map(|&c| cell(c).iter().map(|n| position_in(&patch.free, &patch.sliding, *n)))
             .collect();
+        // Length scales: of each moving node, the smallest mean edge of its
+        // cells (edges, not volume: a sliver's edges are as long as its
+        // neighbours'); of the patch, the median cell's.
+        let mut scale = vec![f64::INFINITY; moving.len()];
+        for (k, &size) in sizes.iter().enumerate() {
+            for &j in &local[k * npc..(k + 1) * npc] {
+                if j != usize::MAX {
+                    scale[j] = scale[j].min(size);
+                }
+            }
+        }
+        sizes.sort_by(f64::total_cmp);
+        let h = sizes[sizes.len() / 2];
         let node = |n: usize| point(&coords[n * dim..(n + 1) * dim]);
         let mut pos: Vec<[f64; 3]> = moving.iter().map(|&n| node(n)).collect();
         let patch_score = |pos: &[[f64; 3]]| {
@@ -301,6 +364,7 @@ impl<'a> PatchContext<'a> {
             coords,
             cells: patch.cells.as_slice(),
             all_cells: cells,
+            projector: None,
         };
         // Interior nodes alone (the sliding ones held where they are).
         let interior: Vec<Unknown> = (0..moving.len())
@@ -313,33 +377,15 @@ impl<'a> PatchContext<'a> {
                 let mut unknowns: Vec<Unknown> = (0..patch.free.len()).map(|j| Unknown::free(pos[j], dim)).collect();
                 for (j, &n) in patch.sliding.iter().enumerate() {
                     let at = pos[patch.free.len() + j];
+                    let s = scale[patch.free.len() + j];
                     let frame =
-                        entity(n).and_then(|(edim, tag)| tangent_frame(projector, edim, tag, at, 1e-3 * h, dim));
+                        entity(n).and_then(|(edim, tag)| tangent_frame(projector, edim, tag, at, 1e-3 * s, dim));
                     unknowns.push(match frame {
-                        Some(t) => Unknown { base: at, tangents: t, limit: SLIDE_LIMIT * h },
+                        Some(t) => Unknown { base: at, tangents: t, limit: SLIDE_LIMIT * s, on: entity(n) },
                         None => Unknown::fixed(at),
                     });
                 }
-                problem.minimise(&mut pos, unknowns, 0.05 * h);
-                // Back onto the entities.
-                for (j, &n) in patch.sliding.iter().enumerate() {
-                    let k = patch.free.len() + j;
-                    if let Some((edim, tag)) = entity(n) {
-                        let mut out = [[f64::NAN; 3]];
-                        let ok = projector
-                            .lock()
-                            .map(|p| p.project(edim, tag, &[pos[k]], &mut out).is_ok())
-                            .unwrap_or(false);
-                        if ok && out[0].iter().all(|v| v.is_finite()) {
-                            pos[k] = out[0];
-                            if dim == 2 {
-                                pos[k][2] = 0.0;
-                            }
-                        } else {
-                            pos[k] = node(n);
-                        }
-                    }
-                }
+                PatchProblem { projector: Some(projector), ..problem }.minimise(&mut pos, unknowns, 0.05 * h);
                 let score = patch_score(&pos);
                 if better(score, best.0) {
                     best = (score, pos.clone());
@@ -366,17 +412,19 @@ fn better(a: (usize, f64), b: (usize, f64)) -> bool {
 /// Passes of the sliding phase (optimise, project back, measure).
 const SLIDING_PASSES: usize = 3;
 
-/// A sliding node moves at most this times the patch's smallest element
-/// size from where a pass starts.
+/// A sliding node moves at most this times its length scale (the smallest
+/// mean edge of its cells) from where a pass starts.
 const SLIDE_LIMIT: f64 = 0.3;
 
 /// One moving node: position base + Σ_m t_m tangents[m], with |Σ t_m
-/// tangents[m]| ≤ limit.
+/// tangents[m]| ≤ limit; a node sliding on entity `on` is then projected
+/// onto it (the tangents span its tangent space at `base`).
 #[derive(Debug, Clone)]
 struct Unknown {
     base: [f64; 3],
     tangents: Vec<[f64; 3]>,
     limit: f64,
+    on: Option<(usize, i32)>,
 }
 
 impl Unknown {
@@ -388,15 +436,16 @@ impl Unknown {
                 e
             })
             .collect();
-        Unknown { base, tangents, limit: f64::INFINITY }
+        Unknown { base, tangents, limit: f64::INFINITY, on: None }
     }
     fn fixed(base: [f64; 3]) -> Unknown {
-        Unknown { base, tangents: Vec::new(), limit: f64::INFINITY }
+        Unknown { base, tangents: Vec::new(), limit: f64::INFINITY, on: None }
     }
 }
 
 /// The energy of one patch as a function of its unknowns.
-struct PatchProblem<'a> {
+#[derive(Clone, Copy)]
+struct PatchProblem<'a, 'p> {
     dim: usize,
     npc: usize,
     rule: &'a SampleRule,
@@ -406,9 +455,13 @@ struct PatchProblem<'a> {
     coords: &'a [f64],
     cells: &'a [usize],
     all_cells: &'a [usize],
+    /// Projects the sliding nodes onto their entity (module docs of
+    /// [`Unknown`]): every energy is evaluated on the entities, so a step
+    /// the line search accepts is valid where the nodes really are.
+    projector: Option<&'a Mutex<&'p dyn Projector>>,
 }
 
-impl PatchProblem<'_> {
+impl PatchProblem<'_, '_> {
     /// Minimise over `unknowns` (one per moving node) from `pos`, untangling
     /// first if a sample point is inverted; writes the new positions.
     fn minimise(&self, pos: &mut [[f64; 3]], unknowns: Vec<Unknown>, first_step: f64) {
@@ -425,6 +478,13 @@ impl PatchProblem<'_> {
         if n_vars == 0 {
             return;
         }
+        // The sliding unknowns by entity, in a deterministic order.
+        let mut on_entity: BTreeMap<(usize, i32), Vec<usize>> = BTreeMap::new();
+        for (j, u) in unknowns.iter().enumerate() {
+            if let (Some(e), false) = (u.on, u.tangents.is_empty()) {
+                on_entity.entry(e).or_default().push(j);
+            }
+        }
         let place = |t: &[f64], out: &mut [[f64; 3]]| -> bool {
             for (j, u) in unknowns.iter().enumerate() {
                 let mut x = u.base;
@@ -440,6 +500,24 @@ impl PatchProblem<'_> {
                     return false;
                 }
                 out[j] = x;
+            }
+            let Some(projector) = self.projector.filter(|_| !on_entity.is_empty()) else { return true };
+            let Ok(projector) = projector.lock() else { return false };
+            for (&(edim, tag), js) in &on_entity {
+                let points: Vec<[f64; 3]> = js.iter().map(|&j| out[j]).collect();
+                let mut projected = vec![[f64::NAN; 3]; js.len()];
+                if projector.project(edim, tag, &points, &mut projected).is_err() {
+                    return false;
+                }
+                for (&j, y) in js.iter().zip(&projected) {
+                    if !y[..dim].iter().all(|v| v.is_finite()) {
+                        return false;
+                    }
+                    out[j] = *y;
+                    if dim == 2 {
+                        out[j][2] = 0.0;
+                    }
+                }
             }
             true
         };
@@ -596,16 +674,17 @@ fn gather(coords: &[f64], cell: &[usize], dim: usize) -> Vec<f64> {
     cell.iter().flat_map(|&n| coords[n * dim..(n + 1) * dim].iter().copied()).collect()
 }
 
-/// |straight element|^(1/d) from its vertices (the first d + 1 nodes).
-fn element_size(dim: usize, xs: &[f64]) -> f64 {
-    let v: Vec<[f64; 3]> = (0..=dim)
-        .map(|a| {
-            let mut p = [0.0; 3];
-            p[..dim].copy_from_slice(&xs[a * dim..(a + 1) * dim]);
-            p
-        })
-        .collect();
-    crate::mapping::det(dim, &crate::mapping::affine_jacobian(dim, &v)).abs().powf(1.0 / dim as f64)
+/// The mean edge length of a straight element, from its vertices (the
+/// first d + 1 nodes).
+fn mean_edge(dim: usize, xs: &[f64]) -> f64 {
+    let (mut sum, mut n) = (0.0, 0);
+    for a in 0..=dim {
+        for b in a + 1..=dim {
+            sum += (0..dim).map(|d| (xs[a * dim + d] - xs[b * dim + d]).powi(2)).sum::<f64>().sqrt();
+            n += 1;
+        }
+    }
+    sum / n as f64
 }
 
 #[cfg(test)]

@@ -591,7 +591,7 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
 fn optimization_json(o: &hocurve::optimize::OptimizeReport) -> String {
     format!(
         "{{\"ran\": {}, \"target_cells\": {}, \"cells_touched\": {}, \"nodes_moved\": {}, \"patches\": {}, \
-         \"rounds\": {}, \"invalid_before\": {}, \"invalid_after\": {}, \"min_q3_before\": {}, \
+         \"rounds\": {}, \"cells_split\": {}, \"invalid_before\": {}, \"invalid_after\": {}, \"min_q3_before\": {}, \
          \"min_q3_after\": {}, \"seconds\": {}}}",
         o.ran,
         o.target_cells,
@@ -599,6 +599,7 @@ fn optimization_json(o: &hocurve::optimize::OptimizeReport) -> String {
         o.nodes_moved,
         o.patches,
         o.rounds,
+        o.cells_split,
         o.invalid_before,
         o.invalid_after,
         num(o.min_q3_before),
