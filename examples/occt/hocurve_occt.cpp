@@ -103,6 +103,12 @@ int main(int argc, char **argv) {
     // Off: a step that inverts a cell is kept rather than halved, so the run
     // ends with the mesh and its invalid cells counted (exit status 3).
     if (adaptive == "off") mesh.set_adaptive_stepping(0);
+    // Placement ends with the projection stage (1); later projector calls
+    // slide nodes in the optimisation and are not placements.
+    mesh.set_progress([&proj](int stage, int, int) {
+      if (stage > 1 && proj.placer) proj.placer->counting = false;
+      return 0;
+    });
     mesh.run_increments(increments);
     auto t_curve = std::chrono::steady_clock::now();
     const HocQuality q = mesh.quality();

@@ -282,6 +282,10 @@ class Placer {
     }
   }
 
+  // The counters below count the nodes hocurve places; projections made
+  // later (the optimisation's sliding nodes) are not placements and are
+  // not counted once the host sets this to false.
+  bool counting = true;
   // Nodes placed by closest point for want of a parametric placement, in
   // total and by reason (each node counts once, under the first reason met).
   std::size_t fallbacks = 0;
@@ -307,8 +311,10 @@ class Placer {
     Miss why = Miss::Unlocated;
     if (edim == 1 && (why = place_on_curve(etag, x, y)) == Miss::None) return;
     if (edim == 2 && m_.dim == 3 && (why = place_on_surface(etag, x, y)) == Miss::None) return;
-    ++fallbacks;
-    ++(why == Miss::Seam ? fallbacks_seam : why == Miss::Far ? fallbacks_far : fallbacks_unlocated);
+    if (counting) {
+      ++fallbacks;
+      ++(why == Miss::Seam ? fallbacks_seam : why == Miss::Far ? fallbacks_far : fallbacks_unlocated);
+    }
     closest_checked(edim, etag, x, y);
   }
 
@@ -327,7 +333,7 @@ class Placer {
     gmsh::model::getValue(edim, etag, std::vector<double>(uv, uv + edim), z);
     if (z.size() == 3 && detail::dist3(z.data(), x) < detail::dist3(y, x) * (1 - 1e-9)) {
       for (int k = 0; k < 3; ++k) y[k] = z[k];
-      ++closest_replaced;
+      if (counting) ++closest_replaced;
     }
   }
 
@@ -630,7 +636,7 @@ class Placer {
     gmsh::model::getValue(2, tag, {target[0], target[1]}, xyz);
     if (xyz.size() != 3 || detail::dist3(xyz.data(), x) > 0.5 * info.diam) return Miss::Far;
     for (int k = 0; k < 3; ++k) y[k] = xyz[k];
-    if (distorted) ++projected;
+    if (distorted && counting) ++projected;
     return Miss::None;
   }
 

@@ -121,6 +121,9 @@ struct PatchContext<'a> {
     fine: SampleRule,
     sampling: &'a ElementCache,
     bernstein: JacobianBernstein,
+    /// Boundary nodes slide when interior moves leave a cell of the patch
+    /// invalid or with Q3 below this.
+    slide_below: f64,
 }
 
 /// Cell figures used to select and to accept.
@@ -174,7 +177,7 @@ pub fn optimize(
     report.target_cells = selected(true, cell_quality, certified).len();
     if opts.enabled && report.target_cells > 0 {
         report.ran = true;
-        let ctx = PatchContext::new(basis, sampling);
+        let ctx = PatchContext::new(basis, sampling, opts.threshold);
         // Projector calls are serialised: a host's callback is called from
         // one thread at a time.
         let projector = projector.filter(|_| opts.slide).map(Mutex::new);
@@ -259,6 +262,19 @@ pub fn optimize(
             round(mesh, straight, &seeds, layers, &ctx.fine, cell_quality, certified, &mut report);
             futile = if invalid_count(certified) < seeds.len() { 0 } else { futile + 1 };
         }
+        // The pieces of split cells had no quality round: one, on those below the threshold.
+        if report.cells_split > 0 {
+            // A split cell's first piece keeps its index; the others point to it.
+            let mut piece = vec![false; mesh.n_cells()];
+            for (c, &q) in parent.iter().enumerate().filter(|(c, q)| c != *q) {
+                (piece[c], piece[q]) = (true, true);
+            }
+            let seeds: Vec<usize> =
+                (0..mesh.n_cells()).filter(|&c| piece[c] && cell_quality[c].q3 < opts.threshold).collect();
+            if !seeds.is_empty() {
+                round(mesh, straight, &seeds, FIRST_LAYERS[0], &ctx.fine, cell_quality, certified, &mut report);
+            }
+        }
         report.cells_touched = touched.iter().filter(|&&t| t).count();
         report.nodes_moved = moved.iter().filter(|&&m| m).count();
     }
@@ -269,7 +285,7 @@ pub fn optimize(
 }
 
 impl<'a> PatchContext<'a> {
-    fn new(basis: &LagrangeBasis, sampling: &'a ElementCache) -> PatchContext<'a> {
+    fn new(basis: &LagrangeBasis, sampling: &'a ElementCache, slide_below: f64) -> PatchContext<'a> {
         let p = basis.order();
         PatchContext {
             dim: basis.simplex().dim(),
@@ -277,6 +293,7 @@ impl<'a> PatchContext<'a> {
             fine: sample_rule(basis, 2 * p),
             sampling,
             bernstein: JacobianBernstein::new(basis),
+            slide_below,
         }
     }
 
@@ -372,7 +389,9 @@ impl<'a> PatchContext<'a> {
             .collect();
         problem.minimise(&mut pos, interior, 0.05 * h);
         let mut best = (patch_score(&pos), pos.clone());
-        if let (Some(projector), true) = (projector, best.0 .0 > 0 && !patch.sliding.is_empty()) {
+        if let (Some(projector), true) =
+            (projector, (best.0 .0 > 0 || best.0 .1 < self.slide_below) && !patch.sliding.is_empty())
+        {
             for _ in 0..SLIDING_PASSES {
                 let mut unknowns: Vec<Unknown> = (0..patch.free.len()).map(|j| Unknown::free(pos[j], dim)).collect();
                 for (j, &n) in patch.sliding.iter().enumerate() {
