@@ -97,6 +97,7 @@ module hocurve
   type, bind(C), public :: hoc_optimization
     integer(c_int) :: ran, elastic_stopped
     real(c_double) :: elastic_load
+    integer(c_int) :: elastic_restarted
     integer(c_size_t) :: target_cells, cells_touched, nodes_moved, patches, cells_split
     integer(c_size_t) :: invalid_before, invalid_after
     real(c_double) :: min_q3_before, min_q3_after, seconds

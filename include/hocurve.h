@@ -96,6 +96,12 @@ typedef struct {
    */
   double elastic_load;
   /**
+   * 1 if, the elastic stage having stopped, the optimisation from there
+   * left cells invalid and the mesh returned is the optimisation of the
+   * whole load in one linear solve on the straight mesh, which left fewer.
+   */
+  int elastic_restarted;
+  /**
    * Cells selected: invalid, or with Q3 below the threshold.
    */
   size_t target_cells;

@@ -275,6 +275,59 @@ pub struct ElasticStop {
     pub cell: Option<usize>,
     /// What went wrong, in words.
     pub detail: String,
+    /// The optimisation from the stopped geometry (plus the rest of the load
+    /// in one linear solve) left cells invalid, and the mesh returned is the
+    /// optimisation of the whole load in one linear solve on the straight
+    /// mesh instead, which left fewer.
+    pub restarted: bool,
+}
+
+/// The mesh after the quality and optimisation stages.
+struct Finished {
+    mesh: HighOrderMesh,
+    straight: Vec<f64>,
+    cell_quality: Vec<ElementQuality>,
+    certified: Vec<quality::CertifiedJacobian>,
+    optimization: OptimizeReport,
+    /// For each cell of `mesh`, the cell before the optimisation split any.
+    parent: Vec<usize>,
+}
+
+impl Finished {
+    /// Measure `mesh` (with the certified verdicts when known) and optimise it.
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        mut mesh: HighOrderMesh,
+        mut straight: Vec<f64>,
+        certified: Option<Vec<quality::CertifiedJacobian>>,
+        basis: &LagrangeBasis,
+        cache: &ElementCache,
+        opts: &OptimizeOptions,
+        projector: &dyn Projector,
+        ti: Option<&[[f64; 3]]>,
+    ) -> Result<Finished> {
+        if let Some(i) = mesh.coords.iter().position(|x| !x.is_finite()) {
+            return Err(Error::Solver(format!("the solution is not finite at node {}", i / mesh.dim())));
+        }
+        // Q1, Q2 against the straight mesh's elements (the curving may move vertices).
+        let mut cell_quality = quality::cell_qualities(cache, &mesh.coords, Some(&straight), &mesh.cells, ti);
+        let mut certified = certified.unwrap_or_else(|| quality::certify_cells(basis, &mesh.coords, &mesh.cells));
+        let (optimization, parent) = optimize::optimize(
+            &mut mesh,
+            &mut straight,
+            basis,
+            cache,
+            opts,
+            Some(projector),
+            &mut cell_quality,
+            &mut certified,
+        );
+        Ok(Finished { mesh, straight, cell_quality, certified, optimization, parent })
+    }
+
+    fn invalid(&self) -> usize {
+        self.certified.iter().filter(|c| c.verdict != quality::Verdict::Valid).count()
+    }
 }
 
 impl CurveReport {
@@ -362,7 +415,7 @@ pub fn curve(
     let topo = Topology::new(&linear)?;
     let nodes = NodeSet::new(topo.simplex, opts.order, opts.spacing);
     let mut mesh = HighOrderMesh::elevate(&linear, &topo, &nodes, opts.spacing)?;
-    let mut straight = mesh.coords.clone();
+    let straight = mesh.coords.clone();
     timings.elevate = t0.elapsed().as_secs_f64();
 
     // 3. Project the boundary nodes.
@@ -432,50 +485,53 @@ pub fn curve(
         let kernel = MaterialKernel::new(&mesh, &straight, &cache, model.as_ref(), mode, &fibres);
         solve_increments(&mut mesh, &kernel, &ubar, stepping, &mut timings, &mut tick)?
     };
-    if let Some(stop) = solved.stopped.clone() {
+    // The straight mesh, kept for a second start of the optimisation.
+    let straight_mesh = solved.stopped.is_some().then(|| HighOrderMesh { coords: straight.clone(), ..mesh.clone() });
+    let append_solves = |solved: &mut IncrementsReport, more: IncrementsReport| {
+        solved.solver_iterations.extend(more.solver_iterations);
+        solved.solver_per_solve.extend(more.solver_per_solve);
+        solved.fallback_per_solve.extend(more.fallback_per_solve);
+        solved.fallbacks += more.fallbacks;
+    };
+    if let (Some(stop), Some(reference)) = (solved.stopped.clone(), &straight_mesh) {
         // The remaining load in one linear elastic solve on the straight
         // mesh, which is always valid: the boundary reaches its target and
         // the optimisation stage untangles what this leaves inverted.
         let rest: Vec<f64> = ubar.iter().map(|u| u * (1.0 - stop.load)).collect();
-        let mut reference = HighOrderMesh { coords: straight.clone(), ..mesh.clone() };
-        let finish = solve_increments(&mut reference, &linear_kernel, &rest, finish_stepping, &mut timings, &mut tick)?;
-        // Its solve is reported with the others.
-        solved.solver_iterations.extend(finish.solver_iterations);
-        solved.solver_per_solve.extend(finish.solver_per_solve);
-        solved.fallback_per_solve.extend(finish.fallback_per_solve);
-        solved.fallbacks += finish.fallbacks;
+        let mut reference = reference.clone();
+        let finish =
+            solve_increments(&mut reference, &linear_kernel, &rest, finish_stepping.clone(), &mut timings, &mut tick)?;
+        append_solves(&mut solved, finish);
         for ((x, r), s) in mesh.coords.iter_mut().zip(&reference.coords).zip(&straight) {
             *x += r - s;
         }
-    }
-    if let Some(i) = mesh.coords.iter().position(|x| !x.is_finite()) {
-        return Err(Error::Solver(format!("the solution is not finite at node {}", i / dim)));
     }
 
     // 5. Quality, and the optimisation of the cells that need it.
     let t = Instant::now();
     tick(Stage::Quality, 0, 1)?;
     let ti = opts.material.is_transversely_isotropic().then_some(&fibres[..]);
-    // Q1, Q2 against the straight mesh's elements (the curving may move vertices).
     let cache = quality::sampling_cache(&basis);
-    let mut cell_quality = quality::cell_qualities(&cache, &mesh.coords, Some(&straight), &mesh.cells, ti);
-    let mut certified = match solved.certified {
-        Some(c) if solved.stopped.is_none() => c,
-        _ => quality::certify_cells(&basis, &mesh.coords, &mesh.cells),
-    };
+    let certified = solved.certified.take().filter(|_| solved.stopped.is_none());
     timings.quality = t.elapsed().as_secs_f64();
     let t = Instant::now();
     tick(Stage::Optimize, 0, 1)?;
-    let (optimization, parent) = optimize::optimize(
-        &mut mesh,
-        &mut straight,
-        &basis,
-        &cache,
-        &opts.optimize,
-        Some(projector),
-        &mut cell_quality,
-        &mut certified,
-    );
+    let finish = |mesh: HighOrderMesh, certified: Option<Vec<quality::CertifiedJacobian>>| {
+        Finished::new(mesh, straight.clone(), certified, &basis, &cache, &opts.optimize, projector, ti)
+    };
+    let mut done = finish(mesh, certified)?;
+    let mut restarted = false;
+    if let (Some(mut second), true) = (straight_mesh, done.invalid() > 0) {
+        // A second start: the whole load in one linear solve on the straight
+        // mesh, then the optimisation; kept if it leaves fewer invalid cells.
+        let full = solve_increments(&mut second, &linear_kernel, &ubar, finish_stepping, &mut timings, &mut tick)?;
+        append_solves(&mut solved, full);
+        let other = finish(second, None)?;
+        if other.invalid() < done.invalid() {
+            (done, restarted) = (other, true);
+        }
+    }
+    let Finished { mesh, straight, mut cell_quality, certified, optimization, parent } = done;
     // Cells split by the optimisation come from the cell at `parent`.
     let input_cell: Vec<usize> = parent.iter().map(|&c| input_cell[c]).collect();
     let fibres: Vec<_> = parent.iter().map(|&c| fibres[c]).collect();
@@ -487,7 +543,8 @@ pub fn curve(
     timings.optimize = t.elapsed().as_secs_f64();
     let mut q = quality::summarize(&cell_quality);
     quality::add_certified(&mut q, &certified);
-    if let Some(stop) = &solved.stopped {
+    if let Some(stop) = &mut solved.stopped {
+        stop.restarted = restarted;
         if q.n_certified_invalid > 0 {
             let c = certified.iter().position(|c| c.verdict == quality::Verdict::Invalid).unwrap_or(0);
             return Err(Error::InvalidElement(format!(
@@ -865,8 +922,13 @@ fn step_through<K: ElementKernel>(
             }
             Err(Failure::Fatal(e)) => return Err(e),
             Err(Failure::AtStart(detail)) if stepping.finish && certify_all => {
-                out.stopped =
-                    Some(ElasticStop { load: from, reason: StepBackReason::SampledInvalid, cell: None, detail });
+                out.stopped = Some(ElasticStop {
+                    load: from,
+                    reason: StepBackReason::SampledInvalid,
+                    cell: None,
+                    detail,
+                    restarted: false,
+                });
                 out.certified = None;
                 return Ok(());
             }
@@ -888,7 +950,7 @@ fn step_through<K: ElementKernel>(
             Err(Failure::Retry { reason, cell, detail }) => {
                 mesh.coords.copy_from_slice(&saved);
                 if depth >= splits && stepping.finish && reason != StepBackReason::NewtonFailed {
-                    out.stopped = Some(ElasticStop { load: from, reason, cell, detail });
+                    out.stopped = Some(ElasticStop { load: from, reason, cell, detail, restarted: false });
                     out.certified = None;
                     return Ok(());
                 }

@@ -18,7 +18,7 @@ namespace {
 void usage() {
   std::cerr << "usage: hocurve-occt MODEL.step|.brep --order P [--mesh-size H] [--curvature N] [--formulation "
                "linear|ile|iil|cil|nonlinear] [--poisson NU] [--increments N] [--threads T] "
-               "[--placement parametric|closest] [--adaptive on|off] "
+               "[--placement parametric|closest] [--adaptive on|off] [--optimize on|off] "
                "--output OUT.msh|.vtu [--report R.json]\n";
 }
 
@@ -41,7 +41,7 @@ std::string json_number(double v) {
 }  // namespace
 
 int main(int argc, char **argv) {
-  std::string model, output, report, formulation = "ile", placement = "parametric", adaptive = "on";
+  std::string model, output, report, formulation = "ile", placement = "parametric", adaptive = "on", optimize = "on";
   int order = 0, increments = 1, threads = 0, per_2pi = 12;
   double h = 0.0, poisson = 0.3;
   for (int i = 1; i < argc; ++i) {
@@ -62,6 +62,7 @@ int main(int argc, char **argv) {
     else if (a == "--threads") threads = std::atoi(value().c_str());
     else if (a == "--placement") placement = value();
     else if (a == "--adaptive") adaptive = value();
+    else if (a == "--optimize") optimize = value();
     else if (a == "--output") output = value();
     else if (a == "--report") report = value();
     else if (a == "-h" || a == "--help") {
@@ -103,10 +104,11 @@ int main(int argc, char **argv) {
     // Off: a step that inverts a cell is kept rather than halved, so the run
     // ends with the mesh and its invalid cells counted (exit status 3).
     if (adaptive == "off") mesh.set_adaptive_stepping(0);
+    if (optimize == "off") mesh.set_optimize(false);
     // Placement ends with the projection stage (1); later projector calls
-    // slide nodes in the optimisation and are not placements.
+    // slide nodes in the optimisation (Placer::placing).
     mesh.set_progress([&proj](int stage, int, int) {
-      if (stage > 1 && proj.placer) proj.placer->counting = false;
+      if (stage > 1 && proj.placer) proj.placer->placing = false;
       return 0;
     });
     mesh.run_increments(increments);
@@ -159,6 +161,7 @@ int main(int argc, char **argv) {
         << ", \"cells_removed\": " << rep.cells_removed << ", \"cells_added\": " << rep.cells_added
         << ", \"bad_cells_left\": " << rep.bad_cells_left << "}"
         << ",\n  \"elastic_stop\": " << (opt.elastic_stopped ? json_number(opt.elastic_load) : std::string("null"))
+        << ",\n  \"elastic_restarted\": " << (opt.elastic_restarted ? "true" : "false")
         << ",\n  \"optimization\": {\"ran\": " << (opt.ran ? "true" : "false") << ", \"target_cells\": "
         << opt.target_cells << ", \"cells_touched\": " << opt.cells_touched << ", \"nodes_moved\": "
         << opt.nodes_moved << ", \"patches\": " << opt.patches << ", \"cells_split\": " << opt.cells_split << ", \"invalid_before\": " << opt.invalid_before

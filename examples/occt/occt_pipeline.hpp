@@ -282,10 +282,13 @@ class Placer {
     }
   }
 
-  // The counters below count the nodes hocurve places; projections made
-  // later (the optimisation's sliding nodes) are not placements and are
-  // not counted once the host sets this to false.
-  bool counting = true;
+  // True while hocurve places the high-order nodes (up to its projection
+  // stage). After that, the calls come from the optimisation's sliding
+  // nodes: they are answered by the checked closest point (the projection
+  // the optimisation's tangent frames assume, not a parametric map of some
+  // straight facet) and are not counted as placements below. The host
+  // clears it from its progress callback.
+  bool placing = true;
   // Nodes placed by closest point for want of a parametric placement, in
   // total and by reason (each node counts once, under the first reason met).
   std::size_t fallbacks = 0;
@@ -311,7 +314,7 @@ class Placer {
     Miss why = Miss::Unlocated;
     if (edim == 1 && (why = place_on_curve(etag, x, y)) == Miss::None) return;
     if (edim == 2 && m_.dim == 3 && (why = place_on_surface(etag, x, y)) == Miss::None) return;
-    if (counting) {
+    if (placing) {
       ++fallbacks;
       ++(why == Miss::Seam ? fallbacks_seam : why == Miss::Far ? fallbacks_far : fallbacks_unlocated);
     }
@@ -333,7 +336,7 @@ class Placer {
     gmsh::model::getValue(edim, etag, std::vector<double>(uv, uv + edim), z);
     if (z.size() == 3 && detail::dist3(z.data(), x) < detail::dist3(y, x) * (1 - 1e-9)) {
       for (int k = 0; k < 3; ++k) y[k] = z[k];
-      if (counting) ++closest_replaced;
+      if (placing) ++closest_replaced;
     }
   }
 
@@ -636,7 +639,7 @@ class Placer {
     gmsh::model::getValue(2, tag, {target[0], target[1]}, xyz);
     if (xyz.size() != 3 || detail::dist3(xyz.data(), x) > 0.5 * info.diam) return Miss::Far;
     for (int k = 0; k < 3; ++k) y[k] = xyz[k];
-    if (distorted && counting) ++projected;
+    if (distorted && placing) ++projected;
     return Miss::None;
   }
 
@@ -797,7 +800,7 @@ struct Projector {
       if (self->placer) {
         closest.resize(3 * n);
         for (size_t i = 0; i < n; ++i)
-          if (self->placement == Placement::Parametric)
+          if (self->placement == Placement::Parametric && self->placer->placing)
             self->placer->place(entity_dim, entity_tag, &xyz[3 * i], &closest[3 * i]);
           else
             self->placer->closest_checked(entity_dim, entity_tag, &xyz[3 * i], &closest[3 * i]);

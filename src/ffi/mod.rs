@@ -182,6 +182,10 @@ pub struct HocOptimization {
     pub elastic_stopped: c_int,
     /// The load fraction the elastic stage reached (1 if it did not stop).
     pub elastic_load: f64,
+    /// 1 if, the elastic stage having stopped, the optimisation from there
+    /// left cells invalid and the mesh returned is the optimisation of the
+    /// whole load in one linear solve on the straight mesh, which left fewer.
+    pub elastic_restarted: c_int,
     /// Cells selected: invalid, or with Q3 below the threshold.
     pub target_cells: usize,
     /// Cells of the patches whose new node positions were kept.
@@ -833,6 +837,7 @@ pub unsafe extern "C" fn hoc_mesh_optimization(mesh: *const HocMesh, out: *mut H
                     ran: o.ran as c_int,
                     elastic_stopped: r.elastic_stop.is_some() as c_int,
                     elastic_load: r.elastic_stop.as_ref().map_or(1.0, |s| s.load),
+                    elastic_restarted: r.elastic_stop.as_ref().is_some_and(|s| s.restarted) as c_int,
                     target_cells: o.target_cells,
                     cells_touched: o.cells_touched,
                     nodes_moved: o.nodes_moved,

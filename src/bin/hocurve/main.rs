@@ -577,11 +577,12 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
         num(t.check),
         num(t.optimize),
         r.elastic_stop.as_ref().map_or("null".into(), |s| format!(
-            "{{\"load\": {}, \"reason\": \"{}\", \"cell\": {}, \"detail\": \"{}\"}}",
+            "{{\"load\": {}, \"reason\": \"{}\", \"cell\": {}, \"detail\": \"{}\", \"restarted\": {}}}",
             num(s.load),
             s.reason.name(),
             s.cell.map_or("null".into(), |c| c.to_string()),
-            json_escape(&s.detail)
+            json_escape(&s.detail),
+            s.restarted
         )),
         optimization_json(&r.optimization),
         output.map(|p| format!("\"{}\"", json_escape(&p.display().to_string()))).unwrap_or("null".into())
