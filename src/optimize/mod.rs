@@ -10,12 +10,16 @@
 //! with δ = 0, a barrier that keeps every sample point valid while the
 //! distortion falls. A patch's new positions are kept only if they improve
 //! it: fewer certified-invalid cells, or as many and a higher minimum Q3.
-//! The cells still bad are then given larger patches, up to a few rounds.
+//! When the interior nodes alone leave a patch invalid or below the
+//! threshold, its high-order boundary nodes slide on their entity through
+//! the projector. After two rounds, the cells still invalid are split at
+//! their centroid ([`split`]) and later rounds, with larger patches, work on
+//! the invalid cells until two rounds in a row fix nothing.
 //! Patches never share a node, so they are optimised in parallel and the
 //! result does not depend on the number of threads.
 //!
-//! Pure: no I/O; the mesh's boundary nodes and the cells outside the patches
-//! are never moved.
+//! Pure: no I/O; vertices, nodes on untagged boundary and the cells outside
+//! the patches are never moved, and boundary nodes only along their entity.
 
 pub mod energy;
 pub mod lbfgs;
