@@ -1,4 +1,4 @@
-//! The Poisson-ratio / order / formulation study of issue 4 (paper §6,
+//! The Poisson-ratio / order / formulation study (paper §6,
 //! Figs. 6 and 14–17): minimum scaled-Jacobian quality Q3 of the curved mesh
 //! against ν for ILE, CIL and NONLINEAR at several orders p, on a coarse
 //! curved-boundary case and on boundary layers of growing stretching.

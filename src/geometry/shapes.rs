@@ -41,7 +41,7 @@ pub enum Shape {
 }
 
 impl Shape {
-    /// Parse the CLI syntax of SPEC §7:
+    /// Parse the CLI syntax:
     /// `sphere:cx,cy,cz,r`, `circle:cx,cy,r`, `circle3:cx,cy,cz,nx,ny,nz,r`,
     /// `cylinder:px,py,pz,ax,ay,az,r`, `torus:cx,cy,cz,R,r` (axis z) or
     /// `torus:cx,cy,cz,ax,ay,az,R,r`, `plane:px,py,pz,nx,ny,nz`,

@@ -1,6 +1,6 @@
 //! Constitutive models: pointwise strain energy Ψ, Cauchy stress σ and
 //! spatial tangent c of the deformation gradient F (paper sections 2 and 4,
-//! Table 2; SPEC §3). No mesh here.
+//! Table 2). No mesh here.
 //!
 //! Every model is calibrated from Young's modulus E and Poisson's ratio ν so
 //! that its tangent at F = I equals the linear tensor
@@ -12,7 +12,7 @@
 //! |---|---|---|
 //! | linear elastic | `linear.rs` | σ = λ tr ε I + 2μ ε, c = c_lin |
 //! | neo-Hookean | `neo_hookean.rs` | paper eq. (21), (22) |
-//! | compressible Mooney–Rivlin | `mooney_rivlin.rs` | SPEC §3 closed form |
+//! | compressible Mooney–Rivlin | `mooney_rivlin.rs` | closed form |
 //! | nearly incompressible Mooney–Rivlin | `ni_mooney_rivlin.rs` | derived through `invariants.rs` |
 //! | transversely isotropic (Bonet–Burton) | `transversely_isotropic.rs` | derived through `invariants.rs` |
 //! | transversely isotropic linear | `ti_linear.rs` | σ = c:ε, c = TI linear tensor |
@@ -89,7 +89,7 @@ pub type Tangent = [[[[f64; 3]; 3]; 3]; 3];
 /// det F > 0. `fibre` is the unit material fibre direction N (ignored by the
 /// isotropic models).
 pub trait Material: Send + Sync + std::fmt::Debug {
-    /// The CLI name of the model (SPEC §7).
+    /// The CLI name of the model.
     fn name(&self) -> &'static str;
     /// Strain energy density Ψ(F) per unit undeformed volume.
     /// Linear models: Ψ = ½ ε:c:ε with ε = sym(F) − I.
@@ -108,7 +108,7 @@ pub trait Material: Send + Sync + std::fmt::Debug {
     }
 }
 
-/// The constitutive models of SPEC §3, named as on the command line.
+/// The constitutive models, named as on the command line.
 #[non_exhaustive]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MaterialModel {
@@ -131,7 +131,7 @@ impl MaterialModel {
         MaterialModel::TransverselyIsotropicLinear,
     ];
 
-    /// The CLI name (SPEC §7), e.g. `"ni-mooney-rivlin"`.
+    /// The CLI name, e.g. `"ni-mooney-rivlin"`.
     pub fn name(self) -> &'static str {
         match self {
             MaterialModel::LinearElastic => "linear",
@@ -160,7 +160,7 @@ impl MaterialModel {
 }
 
 /// Build a model calibrated from E > 0 and 0 ≤ ν < 0.5 (`Error::InvalidInput`
-/// otherwise), following SPEC §3:
+/// otherwise), as follows:
 /// - linear, neo-Hookean: λ = λ_lin, μ = μ_lin;
 /// - Mooney–Rivlin: λ = λ_lin, α = β = μ_lin/4 (α + β = μ_lin/2);
 /// - NI-MR: α = μ_lin/2, so 2α + 3√3β = μ_lin gives β = 0 and

@@ -1,4 +1,4 @@
-//! Compressible Mooney–Rivlin model (paper Table 2, SPEC §3):
+//! Compressible Mooney–Rivlin model (paper Table 2):
 //! Ψ = α I1 + β I2 − 4β J − 2α ln J + λ/2 (J − 1)² − (3α − β),
 //! σ = (2/J)[α b + β(tr b · b − b²)] + (λ(J − 1) − 4β − 2α/J) I,
 //! c_ijkl = (2β/J)(2 b_ij b_kl − b_ik b_jl − b_il b_jk) + (λ(2J − 1) − 4β) δ_ij δ_kl

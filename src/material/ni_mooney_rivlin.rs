@@ -1,4 +1,4 @@
-//! Nearly incompressible Mooney–Rivlin model (paper Table 2, SPEC §3):
+//! Nearly incompressible Mooney–Rivlin model (paper Table 2):
 //! Ψ = α J^(−2/3) I1 + β J^(−2) I2^(3/2) + κ/2 (J − 1)² − (3α + 3√3 β).
 //!
 //! # Derivation

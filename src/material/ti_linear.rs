@@ -51,7 +51,7 @@ pub struct TiStiffness {
 }
 
 impl TiEngineeringConstants {
-    /// The paper's choice (Table 2, SPEC §3): E_A = 5E/2, ν_A = ν, G_A = E/2.
+    /// The paper's choice (Table 2): E_A = 5E/2, ν_A = ν, G_A = E/2.
     pub fn paper_default(young: f64, poisson: f64) -> TiEngineeringConstants {
         TiEngineeringConstants {
             young,

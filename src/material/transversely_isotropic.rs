@@ -1,5 +1,5 @@
-//! Transversely isotropic hyperelastic model of Bonet & Burton (paper Table 2,
-//! SPEC §3), fibre direction N:
+//! Transversely isotropic hyperelastic model of Bonet & Burton (paper Table 2),
+//! fibre direction N:
 //! ```text
 //! Ψ = α(I1 − 3) + β(I2 − 3) − μ̃ ln J + λ/2 (J − 1)² + η1(I4 − 1)
 //!   + η2(I1 − 3)(I4 − 1) + γ(I4 − 1)² − η1/2 (I5 − 1),
@@ -21,7 +21,7 @@
 //!        + (8γ/J) a_i a_j a_k a_l − (η1/J)(b_ik a_j a_l + b_jk a_i a_l + b_il a_j a_k + b_jl a_i a_k).
 //! ```
 //!
-//! # Calibration (SPEC §3)
+//! # Calibration
 //! At F = I (N = e3): σ = 0 iff μ̃ = 2α + 4β; C11 = 4α + 8β + λ, C12 = 4β + λ,
 //! C13 = 4β + λ + 4η2, C33 = 4α + 8β + λ − 4η1 + 8η2 + 8γ, C44 = G_A = 2α + 2β − η1,
 //! C66 = 2α + 2β. With α = β = C66/4 (= E/(8(1+ν))): λ = C11 − 12α,

@@ -121,7 +121,7 @@ impl SparseCholesky {
             .map_err(|e| Error::Solver(format!("symbolic Cholesky analysis failed: {e:?}")))?;
         drop(nd);
         // faer 0.24's threaded sparse Cholesky is slower than the sequential one on
-        // our matrices (issue 5 measurements), so factor sequentially.
+        // our matrices, so factor sequentially.
         Ok(SparseCholesky { symbolic, par: Par::Seq, row_idx, ordering })
     }
 

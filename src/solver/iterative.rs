@@ -1,7 +1,7 @@
 //! The iterative solver: PCG preconditioned by the p-multigrid V-cycle of
 //! [`super::pmg`], with a direct fallback for indefinite systems.
 //!
-//! Decisions (issue 5, sphere_in_box_3d, ILE, ν = 0.45, 2 cores):
+//! Decisions (sphere_in_box_3d, ILE, ν = 0.45, 2 cores):
 //! - Tolerance ‖r‖ ≤ 1e-5 ‖b‖ ([`PcgParams`]): the nodes then agree with the
 //!   direct solver's to ~1e-6 of the mesh size (tests/solvers.rs checks 2e-5),
 //!   far below the geometric error of the curved boundary; 1e-8 took 27
@@ -40,7 +40,7 @@
 //! one increment from a zero start: iterations 10, 9, 13–14, 12, 16 at
 //! p = 2..6, the same at every mesh size; solve time ∝ N^0.94 at p = 4 from
 //! 2,000 to 1,161,402 unknowns, which five increments curve in 62–66 s and 6.8 GB.
-//! With static condensation (session 5): iterations 10, 9, 13, 9–10, 13;
+//! With static condensation: iterations 10, 9, 13, 9–10, 13;
 //! solve ∝ N^0.97; the 1,161,402 unknowns in 40.6 s and 6.3 GB.
 //! The solve is dominated by products with the fine matrix (memory-bound); at
 //! p = 5–6 the numeric set-up of the coarse levels in the first increment
@@ -54,7 +54,7 @@ use crate::{Error, Result};
 
 /// Largest system the iterative solver hands to the direct one when PCG breaks
 /// down (an indefinite CIL or Newton tangent); above it the error is returned.
-/// About 10 s and 2 GB for a 3D p = 4 factorisation (issue 5 measurements).
+/// About 10 s and 2 GB for a 3D p = 4 factorisation.
 pub const FALLBACK_DIRECT_MAX_DOFS: usize = 150_000;
 
 /// Settings of [`IterativeSolver`].
