@@ -18,7 +18,7 @@ typedef struct ElementQuality ElementQuality;
 typedef struct HocMesh HocMesh;
 
 /**
- * The constitutive models of SPEC §3, named as on the command line.
+ * The constitutive models, named as on the command line.
  */
 typedef struct MaterialModel MaterialModel;
 
