@@ -110,6 +110,15 @@ pub fn sweep(mesh: &LinearMesh, accept: impl Fn(usize, f64) -> bool) -> Option<(
         if boundary_edges.contains(&[c.min(d), c.max(d)]) || features.contains(&[a.min(b), a.max(b)]) {
             continue;
         }
+        // A new facet (o, c, d) whose edges oc and od both lie on feature
+        // curves has all three vertices on a curve: its chord cd, once
+        // curved onto the surface, lands on that curve at o, and the facet
+        // folds whatever the interior does (a coarse arc meshed by gmsh on a
+        // fillet's boundary). Keep such a cap for the optimisation stage.
+        let on_curve = |o: usize, v: usize| features.contains(&[o.min(v), o.max(v)]);
+        if [a, b].iter().any(|&o| on_curve(o, c) && on_curve(o, d)) {
+            continue;
+        }
         // Face opposite c is (a, b, d); opposite d is (a, b, c).
         let n1 = outward_normal(&out.coords, a, b, d, c);
         let n2 = outward_normal(&out.coords, a, b, c, d);
@@ -210,5 +219,19 @@ mod tests {
         m.feature_edges = vec![0, 1];
         m.feature_edge_tags = vec![7];
         assert_eq!(remove_boundary_caps(&m).1, vec![0, 1, 2]);
+    }
+
+    #[test]
+    fn a_cap_whose_new_facet_would_have_all_vertices_on_one_curve_is_kept() {
+        // Edges ac and ad on a feature curve: the new facet acd would lie
+        // with all three vertices on that curve.
+        let mut m = ridge();
+        m.feature_edges = vec![0, 2, 0, 3];
+        m.feature_edge_tags = vec![7, 7];
+        assert_eq!(remove_boundary_caps(&m).1, vec![0, 1, 2]);
+        // One of them only: the cap goes.
+        m.feature_edges = vec![0, 2];
+        m.feature_edge_tags = vec![7];
+        assert_eq!(remove_boundary_caps(&m).1, vec![1, 2]);
     }
 }
