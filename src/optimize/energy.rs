@@ -39,7 +39,13 @@ pub fn distortion(dim: usize, f: &Mat3, delta: f64) -> Option<(f64, Mat3)> {
             ff += f[i][k] * f[i][k];
         }
     }
-    let scale = sigma.powf(2.0 / d);
+    // σ^(2/d) without powf (a tenth of the optimisation's time when it was powf).
+    let scale = if dim == 3 {
+        let c = sigma.cbrt();
+        c * c
+    } else {
+        sigma
+    };
     let shape = ff / (d * scale);
     let size = (j * j + 1.0) / (2.0 * sigma) - 1.0;
     let mu = shape + SIZE_WEIGHT * size;
