@@ -82,7 +82,9 @@ typedef int (*HocLinearSolverFn)(void *user_data, int64_t n, const int64_t *row_
  */
 typedef struct {
   /**
-   * 1 if it ran (some cell was invalid or had Q3 below 0.2), else 0.
+   * 1 if it ran: some cell was invalid or had Q3 below 0.2, or the
+   * polish of the cells nearest the smallest Q3 ran (every valid mesh,
+   * unless the stage is off); else 0.
    */
   int ran;
   /**

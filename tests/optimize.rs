@@ -182,3 +182,24 @@ fn splitting_a_cell_interior_moves_cannot_fix_makes_it_valid() {
     }
     assert_on_sphere(&c, 0.6);
 }
+
+/// No cell below the threshold: only the polish runs, on the cells near the
+/// smallest Q3, and raises it without moving a node off the sphere.
+#[test]
+fn polishing_raises_the_smallest_quality_when_no_cell_is_below_the_threshold() {
+    let (mesh, projector) = coarse_sphere();
+    let mut opts = CurveOptions { order: 4, formulation: Formulation::Linear, ..Default::default() };
+    opts.optimize.enabled = false;
+    let off = run(&mesh, &projector, &opts).unwrap();
+    let q_off = off.report.quality.min_q3;
+    // Let the threshold sit just under the smallest Q3: no cell is a target.
+    opts.optimize.enabled = true;
+    opts.optimize.threshold = 0.9 * q_off;
+    let on = run(&mesh, &projector, &opts).unwrap();
+    let r = &on.report.optimization;
+    assert_eq!(r.target_cells, 0);
+    assert!(r.ran && r.cells_touched > 0 && r.cells_split == 0, "{r:?}");
+    assert!(on.report.quality.min_q3 > q_off + 0.01, "min Q3 {q_off} -> {}", on.report.quality.min_q3);
+    assert_eq!(on.report.quality.n_certified_invalid, 0);
+    assert_boundary_kept(&on);
+}

@@ -174,7 +174,9 @@ pub struct HocQuality {
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default)]
 pub struct HocOptimization {
-    /// 1 if it ran (some cell was invalid or had Q3 below 0.2), else 0.
+    /// 1 if it ran: some cell was invalid or had Q3 below 0.2, or the
+    /// polish of the cells nearest the smallest Q3 ran (every valid mesh,
+    /// unless the stage is off); else 0.
     pub ran: c_int,
     /// 1 if the elastic stage stopped short of the full load, because
     /// adaptive stepping could not keep a cell valid: the rest of the load
