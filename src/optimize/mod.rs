@@ -132,6 +132,16 @@ struct PatchContext<'a> {
     bernstein: JacobianBernstein,
 }
 
+/// What one round does: patches of `layers` layers around its seeds,
+/// sampled by `rule`; boundary nodes slide where interior moves leave a
+/// patch invalid or with Q3 below `slide_below`.
+#[derive(Clone, Copy)]
+struct Pass<'r> {
+    layers: usize,
+    rule: &'r SampleRule,
+    slide_below: f64,
+}
+
 /// Cell figures used to select and to accept.
 #[derive(Debug, Clone, Copy)]
 struct CellState {
@@ -191,14 +201,12 @@ pub fn optimize(
         let mut round = |mesh: &mut HighOrderMesh,
                          straight: &[f64],
                          seeds: &[usize],
-                         layers: usize,
-                         rule: &SampleRule,
-                         slide_below: f64,
+                         pass: Pass,
                          cell_quality: &mut [ElementQuality],
                          certified: &mut [CertifiedJacobian],
                          report: &mut OptimizeReport| {
             let adj = NodeCells::new(mesh);
-            let patches = build_patches(mesh, &adj, seeds, layers);
+            let patches = build_patches(mesh, &adj, seeds, pass.layers);
             report.rounds += 1;
             report.patches += patches.len();
             touched.resize(mesh.n_cells(), false);
@@ -214,7 +222,7 @@ pub fn optimize(
                     .par_iter()
                     .map(|p| {
                         let cells = (&mesh.cells[..], mesh.nodes_per_cell());
-                        ctx.optimize_patch(coords, cells, straight, p, (rule, slide_below), cq, cert, projector.as_ref(), &entity)
+                        ctx.optimize_patch(coords, cells, straight, p, pass, cq, cert, projector.as_ref(), &entity)
                     })
                     .collect()
             };
@@ -242,7 +250,8 @@ pub fn optimize(
                 break;
             }
             let rule = if k == 0 { &ctx.coarse } else { &ctx.fine };
-            round(mesh, straight, &seeds, layers, rule, opts.threshold, cell_quality, certified, &mut report);
+            let pass = Pass { layers, rule, slide_below: opts.threshold };
+            round(mesh, straight, &seeds, pass, cell_quality, certified, &mut report);
         }
         // The cells still invalid: split, then later rounds on the invalid ones.
         let invalid = selected(false, cell_quality, certified);
@@ -265,7 +274,8 @@ pub fn optimize(
             if seeds.is_empty() || futile == FUTILE_ROUNDS {
                 break;
             }
-            round(mesh, straight, &seeds, layers, &ctx.fine, opts.threshold, cell_quality, certified, &mut report);
+            let pass = Pass { layers, rule: &ctx.fine, slide_below: opts.threshold };
+            round(mesh, straight, &seeds, pass, cell_quality, certified, &mut report);
             futile = if invalid_count(certified) < seeds.len() { 0 } else { futile + 1 };
         }
         // The pieces of split cells had no quality round: one, on those below the threshold.
@@ -278,7 +288,8 @@ pub fn optimize(
             let seeds: Vec<usize> =
                 (0..mesh.n_cells()).filter(|&c| piece[c] && cell_quality[c].q3 < opts.threshold).collect();
             if !seeds.is_empty() {
-                round(mesh, straight, &seeds, FIRST_LAYERS[0], &ctx.fine, opts.threshold, cell_quality, certified, &mut report);
+                let pass = Pass { layers: FIRST_LAYERS[0], rule: &ctx.fine, slide_below: opts.threshold };
+                round(mesh, straight, &seeds, pass, cell_quality, certified, &mut report);
             }
         }
         // Polish: the cells near the smallest Q3, in small patches, while that
@@ -294,7 +305,8 @@ pub fn optimize(
             seeds.sort_by(|&a, &b| cell_quality[a].q3.total_cmp(&cell_quality[b].q3).then(a.cmp(&b)));
             seeds.truncate(POLISH_SEEDS);
             seeds.sort_unstable();
-            round(mesh, straight, &seeds, FIRST_LAYERS[0], &ctx.fine, f64::INFINITY, cell_quality, certified, &mut report);
+            let pass = Pass { layers: FIRST_LAYERS[0], rule: &ctx.fine, slide_below: f64::INFINITY };
+            round(mesh, straight, &seeds, pass, cell_quality, certified, &mut report);
             let now = cell_quality.iter().map(|q| q.q3).fold(f64::INFINITY, f64::min);
             if now < floor * (1.0 + POLISH_GAIN) {
                 break;
@@ -343,7 +355,7 @@ impl<'a> PatchContext<'a> {
         (cells, npc): (&[usize], usize),
         straight: &[f64],
         patch: &Patch,
-        (rule, slide_below): (&SampleRule, f64),
+        Pass { rule, slide_below, .. }: Pass,
         cell_quality: &[ElementQuality],
         certified: &[CertifiedJacobian],
         projector: Option<&Mutex<&dyn Projector>>,
