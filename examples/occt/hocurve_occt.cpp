@@ -105,12 +105,6 @@ int main(int argc, char **argv) {
     // ends with the mesh and its invalid cells counted (exit status 3).
     if (adaptive == "off") mesh.set_adaptive_stepping(0);
     if (optimize == "off") mesh.set_optimize(false);
-    // Placement ends with the projection stage (1); later projector calls
-    // slide nodes in the optimisation (Placer::placing).
-    mesh.set_progress([&proj](int stage, int, int) {
-      if (stage > 1 && proj.placer) proj.placer->placing = false;
-      return 0;
-    });
     mesh.run_increments(increments);
     auto t_curve = std::chrono::steady_clock::now();
     const HocQuality q = mesh.quality();

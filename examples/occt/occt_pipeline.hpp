@@ -900,7 +900,10 @@ struct Projector {
 };
 
 // Set up a hocurve mesh from the collected linear mesh (which must outlive it:
-// the projector reads it).
+// the projector reads it). Its progress callback ends the placement when
+// hocurve's projection stage (1) is over: later projector calls slide nodes
+// in the optimisation (Placer::placing). A host that sets its own progress
+// callback must clear proj.placer->placing itself.
 inline hocurve::Mesh make_mesh(const LinearMesh &m, Projector &proj) {
   hocurve::Mesh mesh(m.dim, m.coords, m.cells);
   mesh.set_boundary(m.facets, m.facet_tags);
@@ -910,6 +913,10 @@ inline hocurve::Mesh make_mesh(const LinearMesh &m, Projector &proj) {
   Projector *pp = &proj;
   mesh.set_projector([pp](int dim, int tag, std::size_t n, const double *in, double *out) {
     return Projector::callback(pp, dim, tag, n, in, out);
+  });
+  mesh.set_progress([pp](int stage, int, int) {
+    if (stage > 1 && pp->placer) pp->placer->placing = false;
+    return 0;
   });
   return mesh;
 }

@@ -16,9 +16,13 @@
 //! their centroid ([`split`]) and later rounds, with larger patches, work on
 //! the invalid cells until two rounds in a row fix nothing. Last, once every
 //! cell is valid, a polish: small patches around the (at most 64) cells
-//! nearest the smallest Q3, boundary nodes sliding, each kept only if it
-//! raises its patch's smallest Q3, while that raises the mesh's by 1 % or
-//! more (the energy is an average and does not aim at the floor by itself).
+//! nearest the smallest Q3, each kept only if it raises its patch's smallest
+//! Q3, while that raises the mesh's by 1 % or more (the energy is an average
+//! and does not aim at the floor by itself). Its boundary nodes slide only
+//! below the threshold, as in the other rounds: sliding moves nodes off their
+//! interpolation points on the CAD, and the boundary's distance to the CAD
+//! between nodes stops converging with p (a sphere-torus part at p = 5:
+//! 1.4e-4 with sliding in the polish, 1.5e-6 at p = 4).
 //! Patches never share a node, so they are optimised in parallel and the
 //! result does not depend on the number of threads.
 //!
@@ -305,7 +309,7 @@ pub fn optimize(
             seeds.sort_by(|&a, &b| cell_quality[a].q3.total_cmp(&cell_quality[b].q3).then(a.cmp(&b)));
             seeds.truncate(POLISH_SEEDS);
             seeds.sort_unstable();
-            let pass = Pass { layers: FIRST_LAYERS[0], rule: &ctx.fine, slide_below: f64::INFINITY };
+            let pass = Pass { layers: FIRST_LAYERS[0], rule: &ctx.fine, slide_below: opts.threshold };
             round(mesh, straight, &seeds, pass, cell_quality, certified, &mut report);
             let now = cell_quality.iter().map(|q| q.q3).fold(f64::INFINITY, f64::min);
             if now < floor * (1.0 + POLISH_GAIN) {
