@@ -353,17 +353,26 @@ class Placer {
   // optimisation's time on SampleCrankshaft4A). Accepted only if it is no
   // farther from x than that vertex, a point of the entity; else false.
   bool local_foot(int edim, int etag, const double *x, double *y) {
-    const int64_t v = nearest_vertex(edim, etag, x);
+    std::vector<double> z;
+    const int64_t v = nearest_foot(edim, etag, x, z);
     if (v < 0) return false;
+    auto pv = vertex(v);
+    if (!(detail::dist3(z.data(), x) <= detail::dist3(pv.data(), x))) return false;
+    for (int k = 0; k < 3; ++k) y[k] = z[k];
+    return true;
+  }
+
+  // The foot of x on entity (edim, etag) by Gauss-Newton from the parameters
+  // of the entity's mesh vertex nearest to x, into z (3 coordinates); returns
+  // that vertex, or -1 (z unset) if there is none or the evaluation failed.
+  int64_t nearest_foot(int edim, int etag, const double *x, std::vector<double> &z) {
+    const int64_t v = nearest_vertex(edim, etag, x);
+    if (v < 0) return -1;
     const VParam &vp = vertex_param(edim, etag, v);
     double uv[2] = {vp.uv[0], vp.uv[1]};
     newton(edim, etag, x, uv, 30);
-    std::vector<double> z;
     gmsh::model::getValue(edim, etag, std::vector<double>(uv, uv + edim), z);
-    auto pv = vertex(v);
-    if (z.size() != 3 || !(detail::dist3(z.data(), x) <= detail::dist3(pv.data(), x))) return false;
-    for (int k = 0; k < 3; ++k) y[k] = z[k];
-    return true;
+    return z.size() == 3 ? v : -1;
   }
 
   // Closest point, checked against a local search: gmsh 4.8's getClosestPoint
@@ -372,14 +381,8 @@ class Placer {
   // vertex nearest to x finds the local foot; the nearer of the two is taken.
   void closest_checked(int edim, int etag, const double *x, double *y) {
     closest(edim, etag, x, y);
-    const int64_t v = nearest_vertex(edim, etag, x);
-    if (v < 0) return;
-    const VParam &vp = vertex_param(edim, etag, v);
-    double uv[2] = {vp.uv[0], vp.uv[1]};
-    newton(edim, etag, x, uv, 30);
     std::vector<double> z;
-    gmsh::model::getValue(edim, etag, std::vector<double>(uv, uv + edim), z);
-    if (z.size() == 3 && detail::dist3(z.data(), x) < detail::dist3(y, x) * (1 - 1e-9)) {
+    if (nearest_foot(edim, etag, x, z) >= 0 && detail::dist3(z.data(), x) < detail::dist3(y, x) * (1 - 1e-9)) {
       for (int k = 0; k < 3; ++k) y[k] = z[k];
       if (placing) ++closest_replaced;
     }

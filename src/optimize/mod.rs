@@ -185,7 +185,7 @@ pub fn optimize(
     let invalid_count = |cert: &[CertifiedJacobian]| cert.iter().filter(|c| c.verdict != Verdict::Valid).count();
     let mut report = OptimizeReport {
         invalid_before: invalid_count(certified),
-        min_q3_before: cell_quality.iter().map(|q| q.q3).fold(f64::INFINITY, f64::min),
+        min_q3_before: min_q3(cell_quality),
         ..Default::default()
     };
     let mut parent: Vec<usize> = (0..mesh.n_cells()).collect();
@@ -303,7 +303,7 @@ pub fn optimize(
             if invalid_count(certified) > 0 {
                 break;
             }
-            let floor = cell_quality.iter().map(|q| q.q3).fold(f64::INFINITY, f64::min);
+            let floor = min_q3(cell_quality);
             let mut seeds: Vec<usize> =
                 (0..cell_quality.len()).filter(|&c| cell_quality[c].q3 < POLISH_FACTOR * floor).collect();
             seeds.sort_by(|&a, &b| cell_quality[a].q3.total_cmp(&cell_quality[b].q3).then(a.cmp(&b)));
@@ -311,7 +311,7 @@ pub fn optimize(
             seeds.sort_unstable();
             let pass = Pass { layers: FIRST_LAYERS[0], rule: &ctx.fine, slide_below: opts.threshold };
             round(mesh, straight, &seeds, pass, cell_quality, certified, &mut report);
-            let now = cell_quality.iter().map(|q| q.q3).fold(f64::INFINITY, f64::min);
+            let now = min_q3(cell_quality);
             if now < floor * (1.0 + POLISH_GAIN) {
                 break;
             }
@@ -321,7 +321,7 @@ pub fn optimize(
         report.nodes_moved = moved.iter().filter(|&&m| m).count();
     }
     report.invalid_after = invalid_count(certified);
-    report.min_q3_after = cell_quality.iter().map(|q| q.q3).fold(f64::INFINITY, f64::min);
+    report.min_q3_after = min_q3(cell_quality);
     report.seconds = t0.elapsed().as_secs_f64();
     (report, parent)
 }
@@ -462,6 +462,11 @@ impl<'a> PatchContext<'a> {
         );
         better(best.0, before).then(|| best.1.iter().flat_map(|x| x[..dim].to_vec()).collect())
     }
+}
+
+/// The smallest sampled Q3 of the cells (infinity for none).
+fn min_q3(q: &[ElementQuality]) -> f64 {
+    q.iter().map(|q| q.q3).fold(f64::INFINITY, f64::min)
 }
 
 /// (invalid cells, min Q3): fewer invalid cells, or as many and a higher Q3.
