@@ -185,7 +185,7 @@ static inline void curve_and_check_with(const char *name, const FixtureMesh *m, 
   double *x = (double *)malloc(sizeof(double) * 3 * n_nodes);
   int64_t *cells = (int64_t *)malloc(sizeof(int64_t) * n_cells * npc);
   unsigned char *on = (unsigned char *)malloc(n_nodes);
-  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, n_nodes, x0));
+  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, n_nodes, x0));
   CHECK_OK(mesh, hoc_mesh_get_cells(mesh, HOC_ORDERING_NATIVE, n_cells * npc, cells));
   for (size_t v = 0; v < m->n_vertices; ++v)
     for (int k = 0; k < 3; ++k)
@@ -235,7 +235,7 @@ static inline void curve_and_check_with(const char *name, const FixtureMesh *m, 
           q.min_q3);
   }
 
-  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, n_nodes, x));
+  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, n_nodes, x));
   double after = 0.0, vmove = 0.0;
   for (size_t i = 0; i < n_nodes; ++i)
     if (on[i]) {
@@ -313,14 +313,14 @@ static inline size_t jacobian_check_p2(const char *name, const FixtureMesh *m, H
   double *x = (double *)malloc(sizeof(double) * 3 * n_nodes);
   int64_t *cells = (int64_t *)malloc(sizeof(int64_t) * n_cells * 10);
   /* Before the run: the orderings put edge nodes where gmsh and VTK expect them. */
-  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, n_nodes, x));
+  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, n_nodes, x));
   CHECK_OK(mesh, hoc_mesh_get_cells(mesh, HOC_ORDERING_VTK, n_cells * 10, cells));
   check_p2_ordering("vtk", n_cells, cells, x, VTK_TET10_EDGES);
   CHECK_OK(mesh, hoc_mesh_get_cells(mesh, HOC_ORDERING_GMSH, n_cells * 10, cells));
   check_p2_ordering("gmsh", n_cells, cells, x, GMSH_TET10_EDGES);
 
   CHECK_OK(mesh, hoc_mesh_run_increments(mesh, 1));
-  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, n_nodes, x));
+  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, n_nodes, x));
   CHECK_OK(mesh, hoc_mesh_get_cells(mesh, HOC_ORDERING_GMSH, n_cells * 10, cells));
   static const double dL[4][3] = {{-1, -1, -1}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
   double *q3 = (double *)malloc(sizeof(double) * n_cells);

@@ -1,5 +1,5 @@
-/* Mesh handles: create/destroy, NULL handling, and the bad-input catalogue of
- * issue 3 item 3. Every bad input must give the expected non-OK status and a
+/* Mesh handles: create/destroy, NULL handling, and a catalogue of bad inputs.
+ * Every bad input must give the expected non-OK status and a
  * non-empty last-error message, never a crash, and after every failed run the
  * nodes are bitwise what they were before the run. */
 #include "fixtures.h"
@@ -79,7 +79,7 @@ static Snapshot snapshot(const HocMesh *mesh) {
   Snapshot s;
   CHECK_OK(mesh, hoc_mesh_node_count(mesh, &s.n));
   s.x = (double *)malloc(sizeof(double) * 3 * s.n);
-  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, s.n, s.x));
+  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, s.n, s.x));
   return s;
 }
 static void check_unchanged(const char *what, const HocMesh *mesh, Snapshot *before) {
@@ -142,7 +142,7 @@ int main(void) {
   CHECK_OK(mesh, hoc_mesh_cell_count(mesh, &nc, &npc));
   CHECK(nc == 2 && npc == 3, "cell count %zu x %zu", nc, npc);
   double x[8];
-  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, 4, x));
+  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, 4, x));
   CHECK(memcmp(x, sq, sizeof x) == 0, "nodes are not the vertices");
   CHECK_OK(mesh, hoc_mesh_set_order(mesh, 4, HOC_SPACING_EQUISPACED));
   CHECK_OK(mesh, hoc_mesh_node_count(mesh, &n));
@@ -175,7 +175,7 @@ int main(void) {
   EXPECT("cell_quality: NULL handle", hoc_mesh_cell_quality(NULL, 3, 2, x), NULL, NULLP);
   EXPECT("node_count: NULL handle", hoc_mesh_node_count(NULL, &n), NULL, NULLP);
   EXPECT("cell_count: NULL handle", hoc_mesh_cell_count(NULL, &nc, &npc), NULL, NULLP);
-  EXPECT("get_nodes: NULL handle", hoc_mesh_get_nodes(NULL, 4, x), NULL, NULLP);
+  EXPECT("get_nodes: NULL handle", hoc_mesh_get_nodes(NULL, HOC_ORDERING_NATIVE, 4, x), NULL, NULLP);
   EXPECT("get_cells: NULL handle", hoc_mesh_get_cells(NULL, HOC_ORDERING_NATIVE, 1, &i64), NULL, NULLP);
   EXPECT("write: NULL handle", hoc_mesh_write(NULL, "x.msh"), NULL, NULLP);
   EXPECT("quality: out NULL", hoc_mesh_quality(mesh, NULL), mesh, NULLP);
@@ -183,7 +183,7 @@ int main(void) {
   EXPECT("node_count: out NULL", hoc_mesh_node_count(mesh, NULL), mesh, NULLP);
   EXPECT("cell_count: out NULL", hoc_mesh_cell_count(mesh, NULL, &npc), mesh, NULLP);
   EXPECT("cell_count: nodes_per_cell NULL", hoc_mesh_cell_count(mesh, &nc, NULL), mesh, NULLP);
-  EXPECT("get_nodes: coords NULL", hoc_mesh_get_nodes(mesh, 25, NULL), mesh, NULLP);
+  EXPECT("get_nodes: coords NULL", hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, 25, NULL), mesh, NULLP);
   EXPECT("get_cells: cells NULL", hoc_mesh_get_cells(mesh, HOC_ORDERING_NATIVE, 30, NULL), mesh, NULLP);
   EXPECT("write: path NULL", hoc_mesh_write(mesh, NULL), mesh, NULLP);
   EXPECT("set_boundary: facets NULL", hoc_mesh_set_boundary(mesh, 1, NULL, &i32), mesh, NULLP);
@@ -192,8 +192,8 @@ int main(void) {
   /* ---- buffer sizes and enum values on a valid handle ---- */
   double big[2 * 25];
   int64_t cbuf[30];
-  EXPECT("get_nodes: n_nodes too small", hoc_mesh_get_nodes(mesh, 24, big), mesh, HOC_ERROR_BUFFER_SIZE);
-  EXPECT("get_nodes: n_nodes too large", hoc_mesh_get_nodes(mesh, 26, big), mesh, HOC_ERROR_BUFFER_SIZE);
+  EXPECT("get_nodes: n_nodes too small", hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, 24, big), mesh, HOC_ERROR_BUFFER_SIZE);
+  EXPECT("get_nodes: n_nodes too large", hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, 26, big), mesh, HOC_ERROR_BUFFER_SIZE);
   EXPECT("get_cells: len too small", hoc_mesh_get_cells(mesh, HOC_ORDERING_NATIVE, 29, cbuf), mesh, HOC_ERROR_BUFFER_SIZE);
   EXPECT("cell_quality: n wrong", hoc_mesh_cell_quality(mesh, 3, 1, &d), mesh, HOC_ERROR_BUFFER_SIZE);
   EXPECT("cell_quality: measure 0", hoc_mesh_cell_quality(mesh, 0, 2, x), mesh, BADARG);

@@ -83,13 +83,13 @@ int main(int argc, char **argv) {
   CHECK_OK(mesh, hoc_mesh_node_count(mesh, &n_nodes));
   double *x0 = (double *)malloc(sizeof(double) * 3 * n_nodes);
   double *x1 = (double *)malloc(sizeof(double) * 3 * n_nodes);
-  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, n_nodes, x0));
+  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, n_nodes, x0));
   HocStatus st = hoc_mesh_run_increments(mesh, 1);
   const char *msg = hoc_mesh_last_error(mesh);
   printf("p = 3, max_splits 3: status %d: %s\n", st, msg);
   CHECK(st == HOC_ERROR_INVALID_ELEMENT, "status %d", st);
   CHECK(strstr(msg, "limit") != NULL, "the message does not name the limit: %s", msg);
-  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, n_nodes, x1));
+  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, n_nodes, x1));
   CHECK(memcmp(x0, x1, sizeof(double) * 3 * n_nodes) == 0, "the failed run changed the mesh");
   CHECK_OK(mesh, hoc_mesh_increment_count(mesh, &taken, &backs));
   CHECK(taken == 0 && backs == 0, "a failed run left counts %zu, %zu", taken, backs);
@@ -115,7 +115,7 @@ int main(int argc, char **argv) {
     printf("p = 3, optimisation on: status %d: %s\n", st, msg);
     CHECK(st == HOC_ERROR_INVALID_ELEMENT, "status %d", st);
     CHECK(strstr(msg, "optimisation") != NULL, "the message does not name the optimisation: %s", msg);
-    CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, n_nodes, x1));
+    CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, n_nodes, x1));
     CHECK(memcmp(x0, x1, sizeof(double) * 3 * n_nodes) == 0, "the failed run changed the mesh");
   }
   free(x0);

@@ -1,5 +1,6 @@
 // The C++ wrapper end to end: RAII and moves, a lambda projector with captured
-// state, errors as hocurve::Error with status and message, and an exception
+// state, errors as hocurve::Error with status and message, vector sizes checked
+// before anything is read, the library's default increments, and an exception
 // thrown inside the projector coming back out of run_increments.
 #include <hocurve.hpp>
 
@@ -44,7 +45,36 @@ int main() {
     std::printf("no cells: %s\n", e.what());
   }
 
+  // Vector sizes that do not fit: refused before a value is read.
+  try {
+    hocurve::Mesh bad(3, std::vector<double>(13, 0.0), cells);
+    REQUIRE(false, "13 coordinates accepted in 3D");
+  } catch (const hocurve::Error &e) {
+    REQUIRE(e.status() == HOC_ERROR_INVALID_ARGUMENT, "status %d", e.status());
+    std::printf("13 coordinates: %s\n", e.what());
+  }
+  try {
+    hocurve::Mesh bad(3, coords, std::vector<int64_t>(cells.begin(), cells.end() - 1));
+    REQUIRE(false, "a cell with 3 vertices accepted");
+  } catch (const hocurve::Error &e) {
+    REQUIRE(e.status() == HOC_ERROR_INVALID_ARGUMENT, "status %d", e.status());
+  }
+
   hocurve::Mesh mesh(3, coords, cells);
+  const std::vector<int32_t> more_tags(tags.size() + 1, 1);
+  try {
+    mesh.set_boundary(facets, more_tags);  // one tag more than facets
+    REQUIRE(false, "%zu tags for %zu facets accepted", more_tags.size(), facets.size() / 3);
+  } catch (const hocurve::Error &e) {
+    REQUIRE(e.status() == HOC_ERROR_INVALID_ARGUMENT, "status %d", e.status());
+    std::printf("set_boundary: %s\n", e.what());
+  }
+  try {
+    mesh.set_feature_edges(std::vector<int64_t>{0, 1, 2}, std::vector<int32_t>{1});
+    REQUIRE(false, "3 edge ids for 1 edge accepted");
+  } catch (const hocurve::Error &e) {
+    REQUIRE(e.status() == HOC_ERROR_INVALID_ARGUMENT, "status %d", e.status());
+  }
   try {
     mesh.set_order(11);
     REQUIRE(false, "order 11 accepted");
@@ -140,6 +170,20 @@ int main() {
   for (std::size_t i = 0; i < on.size(); ++i)
     if (on[i]) worst = std::fmax(worst, dist_sphere(&x[3 * i]));
   REQUIRE(moved_nodes > 0 && worst < 1e-10, "%zu sphere nodes, worst %g", moved_nodes, worst);
+  // run_increments() takes the library's default number of increments.
+  {
+    hocurve::Mesh d(3, coords, cells);
+    d.set_boundary(facets, tags);
+    d.set_projector([](int, int tag, std::size_t n, const double *in, double *out) {
+      return sphere_box_projector(nullptr, 2, tag, n, in, out);
+    });
+    d.set_order(2);
+    d.set_adaptive_stepping(0);
+    d.run_increments();
+    REQUIRE(d.load_fractions().size() == static_cast<std::size_t>(HOC_DEFAULT_INCREMENTS),
+            "run_increments() took %zu increments, the default is %d", d.load_fractions().size(),
+            HOC_DEFAULT_INCREMENTS);
+  }
   std::vector<double> q3 = target.cell_quality(3);
   REQUIRE(q3.size() == n_cells, "cell_quality size");
   std::printf("hocurve %s via C++: %zu cells, p=4, %zu nodes on the sphere within %.1e, min Q3 %.3f, "

@@ -116,7 +116,7 @@ program t401_curve_f
   call check(hoc_mesh_cell_count(mesh, n_cells, npc), "cell_count")
   if (npc /= (p + 1)*(p + 2)/2 .or. n_cells /= size(cells, 2)) error stop "cell_count"
   allocate (x(2, n_nodes))
-  call check(hoc_mesh_get_nodes(mesh, n_nodes, x), "get_nodes")
+  call check(hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, n_nodes, x), "get_nodes")
   call count_on_circles(x, on_inner, on_outer)
   if (on_inner /= nt .or. on_outer /= nt) then
     print *, "straight mesh: nodes on circles", on_inner, on_outer
@@ -125,7 +125,7 @@ program t401_curve_f
 
   call check(hoc_mesh_run_increments(mesh, 1_c_int), "run_increments")
   call check(hoc_mesh_quality(mesh, q), "quality")
-  call check(hoc_mesh_get_nodes(mesh, n_nodes, x), "get_nodes")
+  call check(hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, n_nodes, x), "get_nodes")
   call count_on_circles(x, on_inner, on_outer)
   if (q%n_invalid /= 0 .or. q%min_q3 <= 0) then
     print *, "invalid cells:", q%n_invalid, " min Q3", q%min_q3

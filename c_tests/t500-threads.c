@@ -31,7 +31,7 @@ static void *curve(void *arg) {
   if (st == HOC_OK) st = hoc_mesh_node_count(mesh, &job->n);
   if (st == HOC_OK) {
     job->x = (double *)malloc(sizeof(double) * 3 * job->n);
-    st = hoc_mesh_get_nodes(mesh, job->n, job->x);
+    st = hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, job->n, job->x);
   }
   if (st != HOC_OK) fprintf(stderr, "order %d: %s: %s\n", job->order, hoc_status_string(st), hoc_mesh_last_error(mesh));
   hoc_mesh_destroy(&mesh);

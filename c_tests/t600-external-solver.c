@@ -138,7 +138,7 @@ static double *curve(const FixtureMesh *m, int p, Cg *cg, int condense, size_t *
   size_t npc = 0;
   CHECK_OK(mesh, hoc_mesh_cell_count(mesh, n_cells, &npc));
   double *x = (double *)malloc(sizeof(double) * 3 * *n_nodes);
-  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, *n_nodes, x));
+  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, *n_nodes, x));
   CHECK_OK(NULL, hoc_mesh_destroy(&mesh));
   return x;
 }
@@ -155,7 +155,7 @@ static void check_failure(HocMesh *mesh, size_t n_nodes, const double *before, C
   CHECK(st == HOC_ERROR_SOLVER, "status %d, expected HOC_ERROR_SOLVER", st);
   CHECK(strstr(msg, "external linear solver") && strstr(msg, expect), "message: %s", msg);
   double *x = (double *)malloc(sizeof(double) * 3 * n_nodes);
-  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, n_nodes, x));
+  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, n_nodes, x));
   CHECK(memcmp(x, before, sizeof(double) * 3 * n_nodes) == 0, "a failed run changed the nodes");
   free(x);
 }
@@ -221,7 +221,7 @@ int main(int argc, char **argv) {
   size_t n_nodes = 0;
   CHECK_OK(mesh, hoc_mesh_node_count(mesh, &n_nodes));
   double *before = (double *)malloc(sizeof(double) * 3 * n_nodes);
-  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, n_nodes, before));
+  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, n_nodes, before));
   Cg failing = {0};
   failing.fail_on_call = 2;
   check_failure(mesh, n_nodes, before, &failing, "status 3");
@@ -238,7 +238,7 @@ int main(int argc, char **argv) {
   CHECK_OK(mesh, hoc_mesh_run_increments(mesh, 1));
   CHECK(nan.calls == 1, "the callback was called after it was removed");
   double *after = (double *)malloc(sizeof(double) * 3 * n_nodes);
-  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, n_nodes, after));
+  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, n_nodes, after));
   CHECK(memcmp(after, before, sizeof(double) * 3 * n_nodes) == 0, "the built-in solver gave other nodes");
   free(after);
   free(before);

@@ -1,4 +1,4 @@
-/* Bad-input catalogue of the C ABI (issue 7). Each case gives the library one
+/* Bad-input catalogue of the C ABI. Each case gives the library one
  * malformed input or call sequence and checks three things:
  *   - the exact status code;
  *   - a substring of hoc_mesh_last_error (the handle's, or the thread's when
@@ -36,7 +36,7 @@ static State state(const HocMesh *mesh, int dim) {
   s.cells = (int64_t *)malloc(sizeof(int64_t) * s.nc * s.npc);
   s.input = (int64_t *)malloc(sizeof(int64_t) * s.nc);
   CHECK(s.x && s.cells && s.input, "out of memory");
-  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, s.nn, s.x));
+  CHECK_OK(mesh, hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, s.nn, s.x));
   CHECK_OK(mesh, hoc_mesh_get_cells(mesh, HOC_ORDERING_NATIVE, s.nc * s.npc, s.cells));
   CHECK_OK(mesh, hoc_mesh_get_input_cells(mesh, s.nc, s.input));
   return s;
@@ -459,7 +459,7 @@ int main(void) {
     CHECK_OK(mesh, hoc_mesh_set_order(mesh, 3, HOC_SPACING_OPTIMAL));
     double x[3 * 8];
     int64_t c[6 * 4];
-    ON_HANDLE("get_nodes: count from before set_order", mesh, 3, hoc_mesh_get_nodes(mesh, nn, x),
+    ON_HANDLE("get_nodes: count from before set_order", mesh, 3, hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, nn, x),
               HOC_ERROR_BUFFER_SIZE, "n_nodes = 8, but the mesh has 64");
     ON_HANDLE("get_cells: length from before set_order", mesh, 3,
               hoc_mesh_get_cells(mesh, HOC_ORDERING_GMSH, nc * npc, c), HOC_ERROR_BUFFER_SIZE,

@@ -1,4 +1,4 @@
-//! One row of the issue-5 solver table: curve `sphere_in_box_3d(n, n_radial)`
+//! One row of the solver table (docs/performance.md): curve `sphere_in_box_3d(n, n_radial)`
 //! at order p with ILE and print unknowns, set-up, solve time, iterations and
 //! peak memory.
 //!

@@ -23,6 +23,15 @@ module hocurve
             c_int, c_int32_t, c_int64_t, c_size_t, c_double, c_char, c_null_char, c_associated, &
             c_f_pointer
 
+  ! Version of the library these bindings are for (hoc_version gives the library's)
+  integer(c_int), parameter, public :: HOCURVE_VERSION_MAJOR = 0
+  integer(c_int), parameter, public :: HOCURVE_VERSION_MINOR = 2
+  integer(c_int), parameter, public :: HOCURVE_VERSION_PATCH = 0
+  ! Defaults shared by every interface
+  integer(c_int), parameter, public :: HOC_DEFAULT_INCREMENTS = 10
+  integer(c_int), parameter, public :: HOC_DEFAULT_MAX_SPLITS = 6
+  real(c_double), parameter, public :: HOC_DEFAULT_YOUNG = 1.0e5_c_double
+  real(c_double), parameter, public :: HOC_DEFAULT_POISSON = 0.45_c_double
   ! HocStatus
   integer(c_int), parameter, public :: HOC_OK = 0
   integer(c_int), parameter, public :: HOC_ERROR_NULL_POINTER = 1
@@ -35,6 +44,7 @@ module hocurve
   integer(c_int), parameter, public :: HOC_ERROR_CANCELLED = 8
   integer(c_int), parameter, public :: HOC_ERROR_BUFFER_SIZE = 9
   integer(c_int), parameter, public :: HOC_ERROR_PANIC = 10
+  integer(c_int), parameter, public :: HOC_ERROR_BUSY = 11
   ! HocNodeSpacing
   integer(c_int), parameter, public :: HOC_SPACING_OPTIMAL = 0
   integer(c_int), parameter, public :: HOC_SPACING_EQUISPACED = 1
@@ -84,13 +94,15 @@ module hocurve
   integer(c_int), parameter, public :: HOC_STAGE_OPTIMIZE = 4
 
   !> HocQuality: minima of Q1..Q5 over the cells, mean Q3, invalid and total cell counts,
-  !> certified lower bound of Q3, certified-invalid and undecided cell counts.
+  !> certified lower bound of Q3, certified-invalid and undecided cell counts, and the
+  !> largest distance of a straight boundary node to its projection in the last run.
   type, bind(C), public :: hoc_quality
     real(c_double) :: min_q1, min_q2, min_q3, min_q4, min_q5, mean_q3
     integer(c_size_t) :: n_invalid
     integer(c_size_t) :: n_cells
     real(c_double) :: certified_min_q3
     integer(c_size_t) :: n_certified_invalid, n_uncertain
+    real(c_double) :: max_projection_distance
   end type hoc_quality
 
   !> HocOptimization: what the optimisation stage of the last run did (see hocurve.h).
@@ -190,6 +202,18 @@ module hocurve
       integer(c_int32_t), intent(in) :: curve_tags(*)
       integer(c_int) :: status
     end function hoc_mesh_set_feature_edges
+
+    !> Hold the facets (entity_dim = dim - 1) or 3D feature edges (entity_dim = 1) with
+    !> these tags straight; replaces the earlier list for entity_dim (n_tags = 0: none).
+    function hoc_mesh_set_straight_tags(mesh, entity_dim, n_tags, tags) &
+        bind(C, name="hoc_mesh_set_straight_tags") result(status)
+      import :: c_int, c_size_t, c_int32_t, c_ptr
+      type(c_ptr), value :: mesh
+      integer(c_int), value :: entity_dim
+      integer(c_size_t), value :: n_tags
+      integer(c_int32_t), intent(in) :: tags(*)
+      integer(c_int) :: status
+    end function hoc_mesh_set_straight_tags
 
     !> fn: c_funloc of a bind(C) function with interface hoc_project_fn (or c_null_funptr).
     function hoc_mesh_set_projector(mesh, fn, user_data) &
@@ -420,9 +444,13 @@ module hocurve
       integer(c_int) :: status
     end function hoc_mesh_cell_count
 
-    function hoc_mesh_get_nodes(mesh, n_nodes, coords) bind(C, name="hoc_mesh_get_nodes") result(status)
+    !> ordering: that of the connectivity used with the nodes (HOC_ORDERING_GMSH and _VTK
+    !> mean equispaced node positions, HOC_ORDERING_NATIVE the mesh's own).
+    function hoc_mesh_get_nodes(mesh, ordering, n_nodes, coords) bind(C, name="hoc_mesh_get_nodes") &
+        result(status)
       import :: c_int, c_ptr, c_size_t, c_double
       type(c_ptr), value :: mesh
+      integer(c_int), value :: ordering
       integer(c_size_t), value :: n_nodes
       real(c_double), intent(out) :: coords(*)
       integer(c_int) :: status

@@ -8,19 +8,67 @@
 #include <stdint.h>
 
 /**
- * Q1..Q5 of one element (Q4, Q5 are NaN without a fibre direction).
+ * The library's version (hoc_version gives it as a string); the header
+ * and the library linked must agree on it.
  */
-typedef struct ElementQuality ElementQuality;
+#define HOCURVE_VERSION_MAJOR 0
+
+#define HOCURVE_VERSION_MINOR 2
+
+#define HOCURVE_VERSION_PATCH 0
+
+/**
+ * The defaults that every interface (C, C++, Fortran, the command line and
+ * Rust's `CurveOptions::default()`) shares: load increments of a run ...
+ */
+#define HOC_DEFAULT_INCREMENTS 10
+
+/**
+ * ... halvings of an increment by adaptive load stepping ...
+ */
+#define HOC_DEFAULT_MAX_SPLITS 6
+
+/**
+ * ... and Young's modulus and Poisson's ratio of the material.
+ */
+#define HOC_DEFAULT_YOUNG 1e5
+
+#define HOC_DEFAULT_POISSON 0.45
+
+/**
+ * Stage of a run reported to the progress callback (HocProgressFn):
+ * elevating the mesh to the order ...
+ */
+#define HOC_STAGE_ELEVATE 0
+
+/**
+ * ... projecting the boundary nodes ...
+ */
+#define HOC_STAGE_PROJECT 1
+
+/**
+ * ... one load increment (`step` of `total`) ...
+ */
+#define HOC_STAGE_INCREMENT 2
+
+/**
+ * ... measuring the quality ...
+ */
+#define HOC_STAGE_QUALITY 3
+
+/**
+ * ... and the optimisation stage.
+ */
+#define HOC_STAGE_OPTIMIZE 4
 
 /**
  * Opaque handle: one mesh being curved.
+ *
+ * One call at a time: a call made while another runs on the same handle
+ * (from another thread, or from inside one of the handle's callbacks) is
+ * refused with `HOC_ERROR_BUSY` and changes nothing.
  */
 typedef struct HocMesh HocMesh;
-
-/**
- * The constitutive models, named as on the command line.
- */
-typedef struct MaterialModel MaterialModel;
 
 /**
  * Status code returned by every function (0 = success).
@@ -36,8 +84,9 @@ typedef int HocStatus;
 typedef int (*HocProjectFn)(void *user_data, int entity_dim, int entity_tag, size_t n_points, const double *points, double *projected);
 
 /**
- * Progress of a run: `stage` 0 elevate, 1 project, 2 increment, 3 quality, 4 optimise;
- * `step` of `total`. Return 0 to continue, nonzero to cancel the run.
+ * Progress of a run: `stage` one of HOC_STAGE_*; `step` of `total`. Return
+ * 0 to continue, nonzero to cancel the run. It must not call hocurve on the
+ * same handle (such a call is refused with HOC_ERROR_BUSY).
  */
 typedef int (*HocProgressFn)(void *user_data, int stage, int step, int total);
 
@@ -183,6 +232,12 @@ typedef struct {
    * Cells whose sign the certified check could not decide (counted as not valid).
    */
   size_t n_uncertain;
+  /**
+   * Largest distance between a boundary node of the straight mesh and its
+   * projection onto the geometry in the last run: how far the straight
+   * boundary was from the CAD. 0 before a run.
+   */
+  double max_projection_distance;
 } HocQuality;
 
 /**
@@ -325,6 +380,12 @@ typedef int HocNodeOrdering;
 #define HOC_ERROR_PANIC 10
 
 /**
+ * Another call on the same handle is running: from another thread, or the
+ * call was made from inside one of the handle's callbacks. Nothing changed.
+ */
+#define HOC_ERROR_BUSY 11
+
+/**
  * Warburton's warp & blend nodes (Gauss–Lobatto on edges). The default.
  */
 #define HOC_SPACING_OPTIMAL 0
@@ -390,17 +451,18 @@ typedef int HocNodeOrdering;
 #define HOC_FORMULATION_NONLINEAR 4
 
 /**
- * hocurve's own: vertices, edge nodes, face nodes, interior nodes.
+ * hocurve's own: vertices, edge nodes, face nodes, interior nodes; node
+ * positions at the mesh's own node set (warp & blend unless set otherwise).
  */
 #define HOC_ORDERING_NATIVE 0
 
 /**
- * gmsh's element node order.
+ * gmsh's element node order; node positions at the equispaced node set.
  */
 #define HOC_ORDERING_GMSH 1
 
 /**
- * VTK Lagrange cell node order.
+ * VTK Lagrange cell node order; node positions at the equispaced node set.
  */
 #define HOC_ORDERING_VTK 2
 
@@ -546,6 +608,21 @@ HocStatus hoc_mesh_set_boundary(HocMesh *mesh, size_t n_facets, const int64_t *f
  * @return HOC_OK, or HOC_ERROR_INVALID_MESH if an edge is not on the boundary
  */
 HocStatus hoc_mesh_set_feature_edges(HocMesh *mesh, size_t n_edges, const int64_t *edges, const int32_t *curve_tags);
+
+/**
+ * Hold the boundary facets (`entity_dim` = dim − 1) or the 3D feature
+ * edges (`entity_dim` = 1) with these tags straight: their nodes stay where
+ * the straight elevation put them, and the projector is never called for
+ * them (like facets left untagged, but the tags stay set). Replaces the
+ * earlier list for `entity_dim`; `n_tags` = 0 curves them all again.
+ *
+ * @param[in,out] mesh the handle
+ * @param[in] entity_dim dim − 1 for facets, 1 for 3D feature edges
+ * @param[in] n_tags number of tags
+ * @param[in] tags `n_tags` tags given by hoc_mesh_set_boundary or hoc_mesh_set_feature_edges
+ * @return HOC_OK, HOC_ERROR_NULL_POINTER or HOC_ERROR_INVALID_ARGUMENT (a bad entity_dim, or a tag no facet or edge carries)
+ */
+HocStatus hoc_mesh_set_straight_tags(HocMesh *mesh, int entity_dim, size_t n_tags, const int32_t *tags);
 
 /**
  * Set the projection callback (NULL removes it).
@@ -905,18 +982,32 @@ HocStatus hoc_mesh_cell_count(const HocMesh *mesh, size_t *n_cells, size_t *node
 HocStatus hoc_mesh_get_input_cells(const HocMesh *mesh, size_t n_cells, int64_t *input_cells);
 
 /**
- * Node coordinates of the current mesh (`n_nodes * dim` doubles). Nodes
- * `0..n_vertices-1` are the input vertices.
+ * Node coordinates of the current mesh (`n_nodes * dim` doubles) for
+ * connectivity in `ordering`. Nodes `0..n_vertices-1` are the input
+ * vertices, and the numbering is the same for every ordering; the positions
+ * are not:
+ * - HOC_ORDERING_NATIVE: the mesh's own node set (hoc_mesh_set_order's
+ *   spacing; warp & blend by default);
+ * - HOC_ORDERING_GMSH, HOC_ORDERING_VTK: the equispaced node set that gmsh's
+ *   and VTK's Lagrange cells interpolate at. The curved element map is
+ *   evaluated there, so a file written with these nodes and the matching
+ *   hoc_mesh_get_cells connectivity has exactly the curved geometry.
  *
  * @param[in] mesh the handle
+ * @param[in] ordering HOC_ORDERING_NATIVE, _GMSH or _VTK: that of the connectivity used with them
  * @param[in] n_nodes must equal hoc_mesh_node_count
  * @param[out] coords `n_nodes * dim` doubles
- * @return HOC_OK, HOC_ERROR_NULL_POINTER or HOC_ERROR_BUFFER_SIZE
+ * @return HOC_OK, HOC_ERROR_NULL_POINTER, HOC_ERROR_INVALID_ARGUMENT or HOC_ERROR_BUFFER_SIZE
  */
-HocStatus hoc_mesh_get_nodes(const HocMesh *mesh, size_t n_nodes, double *coords);
+HocStatus hoc_mesh_get_nodes(const HocMesh *mesh, HocNodeOrdering ordering, size_t n_nodes, double *coords);
 
 /**
  * Cell connectivity of the current mesh in the requested node ordering.
+ * HOC_ORDERING_NATIVE: vertices, then edge, face and interior nodes;
+ * HOC_ORDERING_GMSH: gmsh's MSH element node order (types
+ * 9/21/23/25/42-46 and 11/29/30/31/71-75); HOC_ORDERING_VTK: VTK's Lagrange
+ * cells (69, 71). Take the coordinates from hoc_mesh_get_nodes with the
+ * same ordering: gmsh and VTK cells mean equispaced nodes.
  *
  * @param[in] mesh the handle
  * @param[in] ordering HOC_ORDERING_NATIVE, _GMSH or _VTK

@@ -139,10 +139,11 @@ class Mesh {
     }
     mesh_ = out;
   }
-  /** Same, from vectors; the counts follow from the sizes. */
+  /** Same, from vectors; the counts follow from the sizes, which must be
+   *  multiples of dim and dim + 1 (else Error with HOC_ERROR_INVALID_ARGUMENT). */
   Mesh(int dim, const std::vector<double> &coords, const std::vector<int64_t> &cells)
-      : Mesh(dim, dim > 0 ? coords.size() / static_cast<std::size_t>(dim) : 0, coords.data(),
-             dim > 0 ? cells.size() / static_cast<std::size_t>(dim + 1) : 0, cells.data()) {}
+      : Mesh(dim, count(coords.size(), dim, "coords"), coords.data(), count(cells.size(), dim + 1, "cells"),
+             cells.data()) {}
 
   ~Mesh() { hoc_mesh_destroy(&mesh_); }
   Mesh(const Mesh &) = delete;
@@ -176,6 +177,7 @@ class Mesh {
   }
   /** facets: n*dim vertex ids, tags: n entity tags. */
   void set_boundary(const std::vector<int64_t> &facets, const std::vector<int32_t> &tags) {
+    same_count(facets.size(), tags.size(), dim_, "facets", "tags");
     set_boundary(tags.size(), facets.data(), tags.data());
   }
   void set_feature_edges(std::size_t n_edges, const int64_t *edges, const int32_t *tags) {
@@ -183,7 +185,13 @@ class Mesh {
   }
   /** edges: n*2 vertex ids, tags: n curve tags (3D). */
   void set_feature_edges(const std::vector<int64_t> &edges, const std::vector<int32_t> &tags) {
+    same_count(edges.size(), tags.size(), 2, "edges", "tags");
     set_feature_edges(tags.size(), edges.data(), tags.data());
+  }
+  /** Holds the facets (entity_dim = dim - 1) or 3D feature edges (entity_dim = 1) with these
+   *  tags straight; replaces the earlier list for entity_dim (empty: curve them all). */
+  void set_straight_tags(int entity_dim, const std::vector<int32_t> &tags) {
+    check(hoc_mesh_set_straight_tags(mesh_, entity_dim, tags.size(), tags.data()), mesh_);
   }
   /** Sets (or, with an empty function, clears) the projector. */
   void set_projector(Projector fn) {
@@ -229,7 +237,7 @@ class Mesh {
     check(hoc_mesh_set_formulation(mesh_, formulation), mesh_);
   }
   /** Adaptive load stepping: enabled 1 on, 0 off, -1 the default for the formulation; max_splits 0..30. */
-  void set_adaptive_stepping(int enabled, int max_splits = 6) {
+  void set_adaptive_stepping(int enabled, int max_splits = HOC_DEFAULT_MAX_SPLITS) {
     check(hoc_mesh_set_adaptive_stepping(mesh_, enabled, max_splits), mesh_);
   }
   /** Static condensation of the cell-interior nodes: 1 on (default), 0 off. */
@@ -245,11 +253,13 @@ class Mesh {
     check(hoc_mesh_set_fibres(mesh_, n_cells, fibres), mesh_);
   }
   /** From a vector of 3 * n_cells doubles. */
-  void set_fibres(const std::vector<double> &fibres) { set_fibres(fibres.size() / 3, fibres.data()); }
+  void set_fibres(const std::vector<double> &fibres) {
+    set_fibres(count(fibres.size(), 3, "fibres"), fibres.data());
+  }
   /** Back to the default fibres. */
   void reset_fibres() { check(hoc_mesh_set_fibres(mesh_, 0, nullptr), mesh_); }
   /** Curves the mesh. On failure the mesh is as before, and a callback's exception is rethrown. */
-  void run_increments(int increments = 1) {
+  void run_increments(int increments = HOC_DEFAULT_INCREMENTS) {
     if (callbacks_) callbacks_->pending = nullptr;
     HocStatus st = hoc_mesh_run_increments(mesh_, increments);
     if (st != HOC_OK && callbacks_ && callbacks_->pending) {
@@ -329,11 +339,13 @@ class Mesh {
     check(hoc_mesh_solve_count(mesh_, &n, &fallbacks), mesh_);
     return fallbacks;
   }
-  /** node_count()*dim coordinates, interleaved. */
-  std::vector<double> nodes() const {
+  /** node_count()*dim coordinates, interleaved, for connectivity in `ordering`: the
+   *  mesh's own node set for NATIVE, the equispaced one for GMSH and VTK (see
+   *  hoc_mesh_get_nodes). Use the same ordering for nodes() and cells(). */
+  std::vector<double> nodes(HocNodeOrdering ordering = HOC_ORDERING_NATIVE) const {
     std::size_t n = node_count();
     std::vector<double> x(n * static_cast<std::size_t>(dim_));
-    check(hoc_mesh_get_nodes(mesh_, n, x.data()), mesh_);
+    check(hoc_mesh_get_nodes(mesh_, ordering, n, x.data()), mesh_);
     return x;
   }
   /** n_cells*nodes_per_cell node ids in the given ordering. */
@@ -353,6 +365,22 @@ class Mesh {
   void write(const std::string &path) const { check(hoc_mesh_write(mesh_, path.c_str()), mesh_); }
 
  private:
+  /** size / per, or Error if size is not a multiple of per. */
+  static std::size_t count(std::size_t size, int per, const char *what) {
+    if (per <= 0) return 0;  // a bad dim: hoc_mesh_create says so
+    std::size_t p = static_cast<std::size_t>(per);
+    if (size % p != 0)
+      throw Error(HOC_ERROR_INVALID_ARGUMENT, std::string(what) + ": " + std::to_string(size) +
+                                                  " values is not a multiple of " + std::to_string(p));
+    return size / p;
+  }
+  /** Error unless `items` holds per values for each of the `n` tags. */
+  static void same_count(std::size_t items, std::size_t n, int per, const char *what, const char *tags) {
+    if (items != n * static_cast<std::size_t>(per))
+      throw Error(HOC_ERROR_INVALID_ARGUMENT, std::string(what) + ": " + std::to_string(items) + " values for " +
+                                                  std::to_string(n) + " " + tags + " (" + std::to_string(per) +
+                                                  " per tag expected)");
+  }
   void ensure_callbacks() {
     if (!callbacks_) callbacks_.reset(new detail::Callbacks);
   }

@@ -8,6 +8,8 @@
 //! Before any run (and after changing the order or the boundary) the current
 //! mesh is the straight-sided mesh at the current order.
 
+use std::borrow::Cow;
+
 use crate::curve::{curve, validate_options, CurveOptions, CurveReport, Formulation, Progress};
 use crate::geometry::Projector;
 pub use crate::material::MaterialModel;
@@ -39,6 +41,9 @@ pub struct Session {
     linear: LinearMesh,
     /// For each cell of `linear`, its index in `input`.
     input_cell: Vec<usize>,
+    /// (entity dimension, tag) of the facets and feature edges held straight:
+    /// `linear` has them untagged.
+    straight_tags: Vec<(usize, i32)>,
     topo: Topology,
     opts: CurveOptions,
     projector: Option<Box<dyn Projector + Send>>,
@@ -59,12 +64,13 @@ impl Session {
     pub fn try_new(linear: LinearMesh) -> Result<Session> {
         let (input, _) = validate_and_orient(&linear)?;
         let opts = CurveOptions { order: 1, ..Default::default() };
-        let (linear, input_cell, topo) = without_caps(&input, &opts)?;
+        let (linear, input_cell, topo) = without_caps(&input, &opts, &[])?;
         let (mesh, cell_quality, quality) = straight(&linear, &topo, &opts)?;
         Ok(Session {
             input,
             linear,
             input_cell,
+            straight_tags: Vec::new(),
             topo,
             opts,
             projector: None,
@@ -122,7 +128,7 @@ impl Session {
     /// Rebuild the straight mesh for a new input mesh or settings; on error
     /// nothing changes.
     fn reset(&mut self, input: LinearMesh, opts: CurveOptions) -> Result<()> {
-        let (linear, input_cell, topo) = without_caps(&input, &opts)?;
+        let (linear, input_cell, topo) = without_caps(&input, &opts, &self.straight_tags)?;
         let (mesh, cq, q) = straight(&linear, &topo, &opts)?;
         self.input = input;
         self.linear = linear;
@@ -152,6 +158,42 @@ impl Session {
         linear.feature_edge_tags = tags;
         let (linear, _) = validate_and_orient(&linear)?;
         self.reset(linear, self.opts.clone())
+    }
+
+    /// Hold the facets (`entity_dim` = dim − 1) or 3D feature edges
+    /// (`entity_dim` = 1) with these tags straight: they are curved by
+    /// nothing, their nodes stay where elevation put them and the projector
+    /// is never asked about them. Replaces the earlier list for
+    /// `entity_dim`; an empty list curves them all again. A tag that no
+    /// facet or edge carries is an error.
+    pub fn set_straight_tags(&mut self, entity_dim: usize, tags: &[i32]) -> Result<()> {
+        let dim = self.dim();
+        let tagged: &[i32] = if entity_dim + 1 == dim {
+            &self.input.facet_tags
+        } else if dim == 3 && entity_dim == 1 {
+            &self.input.feature_edge_tags
+        } else {
+            return Err(Error::InvalidInput(format!(
+                "entity_dim must be {} (facets){}, got {entity_dim}",
+                dim - 1,
+                if dim == 3 { " or 1 (feature edges)" } else { "" }
+            )));
+        };
+        if let Some(t) = tags.iter().find(|t| !tagged.contains(t)) {
+            return Err(Error::InvalidInput(format!("no entity of dimension {entity_dim} has tag {t}")));
+        }
+        let previous = std::mem::take(&mut self.straight_tags);
+        self.straight_tags = previous
+            .iter()
+            .copied()
+            .filter(|&(d, _)| d != entity_dim)
+            .chain(tags.iter().map(|&t| (entity_dim, t)))
+            .collect();
+        let result = self.reset(self.input.clone(), self.opts.clone());
+        if result.is_err() {
+            self.straight_tags = previous;
+        }
+        result
     }
 
     pub fn set_order(&mut self, order: usize, spacing: NodeSpacing) -> Result<()> {
@@ -324,6 +366,17 @@ impl Session {
         Ok(())
     }
 
+    /// Node coordinates of the current mesh for connectivity in `ordering`:
+    /// at this mesh's own node set for [`NodeOrdering::Native`], at the
+    /// equispaced one for gmsh's and VTK's (their cells interpolate there).
+    /// Same nodes, same numbering; the same curved geometry either way.
+    pub fn nodes(&self, ordering: NodeOrdering) -> Cow<'_, [f64]> {
+        match ordering {
+            NodeOrdering::Native => Cow::Borrowed(&self.mesh.coords),
+            NodeOrdering::Gmsh | NodeOrdering::Vtk => self.mesh.equispaced_coords(),
+        }
+    }
+
     /// Cell connectivity of the current mesh in the given node ordering.
     pub fn cells(&self, ordering: NodeOrdering) -> Vec<usize> {
         let m = &self.mesh;
@@ -338,11 +391,18 @@ impl Session {
     }
 }
 
-/// The mesh to curve: `input` without its boundary caps if `opts.remove_caps`,
+/// The mesh to curve: `input` with the straight tags dropped and without its
+/// boundary caps if `opts.remove_caps`,
 /// the input index of each of its cells, and its topology.
-fn without_caps(input: &LinearMesh, opts: &CurveOptions) -> Result<(LinearMesh, Vec<usize>, Topology)> {
+fn without_caps(
+    input: &LinearMesh,
+    opts: &CurveOptions,
+    straight_tags: &[(usize, i32)],
+) -> Result<(LinearMesh, Vec<usize>, Topology)> {
+    let mut curved = input.clone();
+    curved.retain_tags(|d, t| !straight_tags.contains(&(d, t)));
     let (linear, input_cell) =
-        if opts.remove_caps { remove_boundary_caps(input) } else { (input.clone(), (0..input.n_cells()).collect()) };
+        if opts.remove_caps { remove_boundary_caps(&curved) } else { (curved, (0..input.n_cells()).collect()) };
     let topo = Topology::new(&linear)?;
     Ok((linear, input_cell, topo))
 }

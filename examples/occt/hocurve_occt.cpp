@@ -38,6 +38,18 @@ std::string json_number(double v) {
   return buf;
 }
 
+/** The run's linear solves as a JSON array: which solver produced each
+ *  solution, why the first choice did not ("none" when it did), iterations. */
+std::string solves_json(const hocurve::Mesh &mesh) {
+  std::string out = "[";
+  for (const auto &s : mesh.solves()) {
+    if (out.size() > 1) out += ", ";
+    out += std::string("{\"solver\": \"") + s.solver_name() + "\", \"fallback\": \"" + s.fallback_name() +
+           "\", \"iterations\": " + std::to_string(s.iterations) + "}";
+  }
+  return out + "]";
+}
+
 }  // namespace
 
 int main(int argc, char **argv) {
@@ -162,7 +174,8 @@ int main(int argc, char **argv) {
         << ", \"invalid_after\": " << opt.invalid_after << ", \"min_q3_before\": " << json_number(opt.min_q3_before)
         << ", \"min_q3_after\": " << json_number(opt.min_q3_after) << ", \"seconds\": " << json_number(opt.seconds)
         << "}"
-        << ",\n  \"solver_fallbacks\": " << mesh.solver_fallbacks() << ",\n  \"seconds\": {\"total\": "
+        << ",\n  \"solver_fallbacks\": " << mesh.solver_fallbacks() << ",\n  \"solves\": " << solves_json(mesh)
+        << ",\n  \"seconds\": {\"total\": "
         << json_number(secs(t0, t_end)) << ", \"mesh\": " << json_number(secs(t0, t_mesh))
         << ", \"curve\": " << json_number(secs(t_mesh, t_curve)) << "}\n}\n";
       if (!r) throw std::runtime_error("cannot write " + report);

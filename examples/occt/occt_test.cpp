@@ -432,9 +432,9 @@ int check(const std::string &model, double h, int pmin, int pmax, int per_2pi, d
     std::fflush(stdout);
     rows.push_back(r);
   }
-  // Convergence with p on the fixed mesh (criterion 2). On a circular arc the
+  // Convergence with p on the fixed mesh. On a circular arc the
   // distance falls in pairs of orders (rate h^(p+2) at even p, h^(p+1) at odd
-  // p; README), so only a fall at every order and a large overall one are asked.
+  // p; see examples/occt/README.md), so only a fall at every order and a large overall one are asked.
   if (parametric) {
     // Every node placed through the parametrisation (a fallback to closest
     // point hid a bad getClosestPoint answer on the torus; README).

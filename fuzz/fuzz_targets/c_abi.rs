@@ -320,7 +320,7 @@ fn nodes(h: *const HocMesh, dim: usize) -> Vec<u64> {
     unsafe {
         assert_eq!(hoc_mesh_node_count(h, &mut n), HOC_OK);
         let mut x = vec![0.0; n * dim];
-        assert_eq!(hoc_mesh_get_nodes(h, n, x.as_mut_ptr()), HOC_OK);
+        assert_eq!(hoc_mesh_get_nodes(h, HOC_ORDERING_NATIVE, n, x.as_mut_ptr()), HOC_OK);
         x.iter().map(|v| v.to_bits()).collect()
     }
 }
@@ -569,7 +569,7 @@ fn one_call(r: &mut Bytes, slots: &mut [Slot; 2], bases: &[Base], runs: &mut usi
                 let (nn, nc, npc) = if h.is_null() { (0, 0, 0) } else { counts(h) };
                 let mut x = vec![0.0; (nn + 1) * dim.max(2)];
                 let n = r.out_count(nn);
-                let st = hoc_mesh_get_nodes(h, n, if r.chance(8) { null_mut() } else { x.as_mut_ptr() });
+                let st = hoc_mesh_get_nodes(h, r.int(&[0, 1, 2, 0, 3]), n, if r.chance(8) { null_mut() } else { x.as_mut_ptr() });
                 check("get_nodes", st, h);
                 let mut c = vec![0i64; nc * npc + 1];
                 let len = r.out_count(nc * npc);

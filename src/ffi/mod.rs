@@ -1,4 +1,4 @@
-//! The C ABI (SPEC section 6): a thin layer over [`Session`].
+//! The C ABI: a thin layer over [`Session`].
 //!
 //! Every function checks its pointers, lengths and enum values, converts,
 //! makes one call into the Rust API and maps the error to a status code. No
@@ -13,10 +13,11 @@
 #![allow(clippy::missing_safety_doc)]
 
 use std::borrow::Cow;
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell, UnsafeCell};
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::curve::{Formulation, Progress, Stage, StepBackReason};
 use crate::geometry::Projector;
@@ -26,6 +27,33 @@ use crate::reference::NodeSpacing;
 use crate::session::{NodeOrdering, Session};
 use crate::solver::{CsrView, ExternalSolver, FallbackReason, SolvedBy, SystemSolver};
 use crate::Error;
+
+/// The library's version (hoc_version gives it as a string); the header
+/// and the library linked must agree on it.
+pub const HOCURVE_VERSION_MAJOR: c_int = 0;
+pub const HOCURVE_VERSION_MINOR: c_int = 2;
+pub const HOCURVE_VERSION_PATCH: c_int = 0;
+
+/// The defaults that every interface (C, C++, Fortran, the command line and
+/// Rust's `CurveOptions::default()`) shares: load increments of a run ...
+pub const HOC_DEFAULT_INCREMENTS: c_int = 10;
+/// ... halvings of an increment by adaptive load stepping ...
+pub const HOC_DEFAULT_MAX_SPLITS: c_int = 6;
+/// ... and Young's modulus and Poisson's ratio of the material.
+pub const HOC_DEFAULT_YOUNG: f64 = 1e5;
+pub const HOC_DEFAULT_POISSON: f64 = 0.45;
+
+/// Stage of a run reported to the progress callback (HocProgressFn):
+/// elevating the mesh to the order ...
+pub const HOC_STAGE_ELEVATE: c_int = 0;
+/// ... projecting the boundary nodes ...
+pub const HOC_STAGE_PROJECT: c_int = 1;
+/// ... one load increment (`step` of `total`) ...
+pub const HOC_STAGE_INCREMENT: c_int = 2;
+/// ... measuring the quality ...
+pub const HOC_STAGE_QUALITY: c_int = 3;
+/// ... and the optimisation stage.
+pub const HOC_STAGE_OPTIMIZE: c_int = 4;
 
 /// Status code returned by every function (0 = success).
 pub type HocStatus = c_int;
@@ -51,6 +79,9 @@ pub const HOC_ERROR_CANCELLED: HocStatus = 8;
 pub const HOC_ERROR_BUFFER_SIZE: HocStatus = 9;
 /// An internal error (a bug in hocurve); the handle is still usable.
 pub const HOC_ERROR_PANIC: HocStatus = 10;
+/// Another call on the same handle is running: from another thread, or the
+/// call was made from inside one of the handle's callbacks. Nothing changed.
+pub const HOC_ERROR_BUSY: HocStatus = 11;
 
 /// Placement of the high-order nodes in the reference element.
 pub type HocNodeSpacing = c_int;
@@ -89,11 +120,12 @@ pub const HOC_FORMULATION_NONLINEAR: HocFormulation = 4;
 
 /// Local node order of the returned connectivity.
 pub type HocNodeOrdering = c_int;
-/// hocurve's own: vertices, edge nodes, face nodes, interior nodes.
+/// hocurve's own: vertices, edge nodes, face nodes, interior nodes; node
+/// positions at the mesh's own node set (warp & blend unless set otherwise).
 pub const HOC_ORDERING_NATIVE: HocNodeOrdering = 0;
-/// gmsh's element node order.
+/// gmsh's element node order; node positions at the equispaced node set.
 pub const HOC_ORDERING_GMSH: HocNodeOrdering = 1;
-/// VTK Lagrange cell node order.
+/// VTK Lagrange cell node order; node positions at the equispaced node set.
 pub const HOC_ORDERING_VTK: HocNodeOrdering = 2;
 
 /// Why adaptive load stepping rejected an increment (hoc_mesh_get_step_backs).
@@ -168,6 +200,10 @@ pub struct HocQuality {
     pub n_certified_invalid: usize,
     /// Cells whose sign the certified check could not decide (counted as not valid).
     pub n_uncertain: usize,
+    /// Largest distance between a boundary node of the straight mesh and its
+    /// projection onto the geometry in the last run: how far the straight
+    /// boundary was from the CAD. 0 before a run.
+    pub max_projection_distance: f64,
 }
 
 /// What the optimisation stage of the last run did (hoc_mesh_optimization).
@@ -258,8 +294,9 @@ pub type HocProjectFn = Option<
     ) -> c_int,
 >;
 
-/// Progress of a run: `stage` 0 elevate, 1 project, 2 increment, 3 quality, 4 optimise;
-/// `step` of `total`. Return 0 to continue, nonzero to cancel the run.
+/// Progress of a run: `stage` one of HOC_STAGE_*; `step` of `total`. Return
+/// 0 to continue, nonzero to cancel the run. It must not call hocurve on the
+/// same handle (such a call is refused with HOC_ERROR_BUSY).
 pub type HocProgressFn =
     Option<unsafe extern "C" fn(user_data: *mut c_void, stage: c_int, step: c_int, total: c_int) -> c_int>;
 
@@ -308,9 +345,44 @@ pub type HocLinearSolverFn = Option<
 >;
 
 /// Opaque handle: one mesh being curved.
+///
+/// One call at a time: a call made while another runs on the same handle
+/// (from another thread, or from inside one of the handle's callbacks) is
+/// refused with `HOC_ERROR_BUSY` and changes nothing.
 pub struct HocMesh {
+    /// Set while a call runs on the handle: the only way to reach `state`.
+    busy: AtomicBool,
+    state: UnsafeCell<HandleState>,
+}
+
+struct HandleState {
     session: Session,
-    last_error: RefCell<CString>,
+    last_error: CString,
+}
+
+// SAFETY: `state` is only reached by the call that set `busy` (see `Claim`).
+unsafe impl Sync for HocMesh {}
+
+/// Exclusive use of a handle for one call; dropping it releases the handle.
+struct Claim<'a>(&'a HocMesh);
+
+impl HocMesh {
+    fn claim(&self) -> Option<Claim<'_>> {
+        self.busy.compare_exchange(false, true, Ordering::Acquire, Ordering::Relaxed).ok().map(|_| Claim(self))
+    }
+}
+
+impl Claim<'_> {
+    fn state(&mut self) -> &mut HandleState {
+        // SAFETY: `busy` was set by this claim, so no other reference to `state` exists.
+        unsafe { &mut *self.0.state.get() }
+    }
+}
+
+impl Drop for Claim<'_> {
+    fn drop(&mut self) {
+        self.0.busy.store(false, Ordering::Release);
+    }
 }
 
 type FfiResult = std::result::Result<(), (HocStatus, String)>;
@@ -344,12 +416,50 @@ fn null(what: &str) -> (HocStatus, String) {
 }
 
 thread_local! {
-    /// The message of the last failed call on this thread that had no handle.
+    /// The message of the last failed call on this thread that had no handle,
+    /// or that was refused because its handle was busy.
     static THREAD_LAST_ERROR: RefCell<CString> = RefCell::new(CString::default());
+    /// The handle of this thread's last refused (`HOC_ERROR_BUSY`) call, until
+    /// the thread's next call on that handle runs: hoc_mesh_last_error then
+    /// gives the refusal, not the message of the call that held the handle.
+    static REFUSED: Cell<*const HocMesh> = const { Cell::new(std::ptr::null()) };
 }
 
-/// Run `f` with panics caught; record the message on the handle.
+fn set_thread_error(msg: CString) {
+    THREAD_LAST_ERROR.with(|e| *e.borrow_mut() = msg);
+}
+
+fn busy_message() -> CString {
+    CString::new(
+        "the handle is busy: another call on it is running (from another thread, or this call was made \
+         from inside one of its callbacks)",
+    )
+    .expect("no NUL")
+}
+
+/// Run `f` with panics caught, holding the handle (if any) for the call;
+/// record the message on the handle, or on the thread without one. A handle
+/// already held gives `HOC_ERROR_BUSY` without running `f`.
 fn guard(handle: *const HocMesh, f: impl FnOnce() -> FfiResult) -> HocStatus {
+    // SAFETY: a non-null handle comes from hoc_mesh_create.
+    let mut claim = match unsafe { handle.as_ref() } {
+        None => None,
+        Some(h) => match h.claim() {
+            Some(c) => {
+                REFUSED.with(|r| {
+                    if r.get() == handle {
+                        r.set(std::ptr::null());
+                    }
+                });
+                Some(c)
+            }
+            None => {
+                set_thread_error(busy_message());
+                REFUSED.with(|r| r.set(handle));
+                return HOC_ERROR_BUSY;
+            }
+        },
+    };
     let result = catch_unwind(AssertUnwindSafe(f)).unwrap_or_else(|p| {
         let msg = p
             .downcast_ref::<&str>()
@@ -363,13 +473,10 @@ fn guard(handle: *const HocMesh, f: impl FnOnce() -> FfiResult) -> HocStatus {
         Err(e) => e,
     };
     let msg = CString::new(msg.replace('\0', " ")).unwrap_or_default();
-    if handle.is_null() {
+    match claim.as_mut() {
+        Some(c) => c.state().last_error = msg,
         // No handle (hoc_mesh_create, or a NULL handle): keep it per thread.
-        THREAD_LAST_ERROR.with(|e| *e.borrow_mut() = msg);
-    } else {
-        // SAFETY: a non-null handle comes from hoc_mesh_create.
-        let h = unsafe { &*handle };
-        *h.last_error.borrow_mut() = msg;
+        None => set_thread_error(msg),
     }
     status
 }
@@ -415,12 +522,17 @@ fn checked_mul(a: usize, b: usize, what: &str) -> std::result::Result<usize, (Ho
     a.checked_mul(b).ok_or_else(|| arg(format!("{what}: size overflows")))
 }
 
-unsafe fn handle_mut<'a>(mesh: *mut HocMesh) -> std::result::Result<&'a mut HocMesh, (HocStatus, String)> {
-    mesh.as_mut().ok_or_else(|| null("mesh"))
+/// The state of the handle that the enclosing [`guard`] holds. Only for use
+/// inside a `guard` closure, once per call.
+unsafe fn handle_mut<'a>(mesh: *mut HocMesh) -> std::result::Result<&'a mut HandleState, (HocStatus, String)> {
+    // SAFETY: `guard` claimed the handle for this call.
+    mesh.as_ref().map(|h| &mut *h.state.get()).ok_or_else(|| null("mesh"))
 }
 
-unsafe fn handle<'a>(mesh: *const HocMesh) -> std::result::Result<&'a HocMesh, (HocStatus, String)> {
-    mesh.as_ref().ok_or_else(|| null("mesh"))
+/// Shared access to the handle that the enclosing [`guard`] holds.
+unsafe fn handle<'a>(mesh: *const HocMesh) -> std::result::Result<&'a HandleState, (HocStatus, String)> {
+    // SAFETY: `guard` claimed the handle for this call.
+    mesh.as_ref().map(|h| &*h.state.get()).ok_or_else(|| null("mesh"))
 }
 
 /// Create a mesh handle from a linear triangle (`dim` = 2) or tetrahedral
@@ -461,7 +573,8 @@ pub unsafe extern "C" fn hoc_mesh_create(
         let cells = indices(slice(cells, checked_mul(n_cells, d + 1, "cells")?, "cells")?, "cells")?;
         let linear = LinearMesh { dim: d, coords, cells, ..Default::default() };
         let session = Session::try_new(linear).map_err(mesh_err)?;
-        created = Some(Box::new(HocMesh { session, last_error: RefCell::new(CString::default()) }));
+        let state = HandleState { session, last_error: CString::default() };
+        created = Some(Box::new(HocMesh { busy: AtomicBool::new(false), state: UnsafeCell::new(state) }));
         Ok(())
     });
     if let Some(h) = created {
@@ -478,6 +591,14 @@ pub unsafe extern "C" fn hoc_mesh_create(
 pub unsafe extern "C" fn hoc_mesh_destroy(mesh: *mut *mut HocMesh) -> HocStatus {
     if mesh.is_null() || (*mesh).is_null() {
         return HOC_OK;
+    }
+    match (**mesh).claim() {
+        // Keep it held: nothing may start on the handle while it is freed.
+        Some(claim) => std::mem::forget(claim),
+        None => {
+            set_thread_error(busy_message());
+            return HOC_ERROR_BUSY;
+        }
     }
     let h = std::mem::replace(&mut *mesh, std::ptr::null_mut());
     // Dropping cannot panic in our types, but never let it unwind into C.
@@ -572,6 +693,32 @@ impl Projector for CProjector {
     }
 }
 
+/// Hold the boundary facets (`entity_dim` = dim − 1) or the 3D feature
+/// edges (`entity_dim` = 1) with these tags straight: their nodes stay where
+/// the straight elevation put them, and the projector is never called for
+/// them (like facets left untagged, but the tags stay set). Replaces the
+/// earlier list for `entity_dim`; `n_tags` = 0 curves them all again.
+///
+/// @param[in,out] mesh the handle
+/// @param[in] entity_dim dim − 1 for facets, 1 for 3D feature edges
+/// @param[in] n_tags number of tags
+/// @param[in] tags `n_tags` tags given by hoc_mesh_set_boundary or hoc_mesh_set_feature_edges
+/// @return HOC_OK, HOC_ERROR_NULL_POINTER or HOC_ERROR_INVALID_ARGUMENT (a bad entity_dim, or a tag no facet or edge carries)
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_set_straight_tags(
+    mesh: *mut HocMesh,
+    entity_dim: c_int,
+    n_tags: usize,
+    tags: *const i32,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle_mut(mesh)?;
+        let entity_dim = usize::try_from(entity_dim).map_err(|_| arg(format!("entity_dim = {entity_dim}")))?;
+        let tags = slice(tags, checked_count(n_tags, "n_tags")?, "tags")?;
+        h.session.set_straight_tags(entity_dim, tags).map_err(err)
+    })
+}
+
 /// Set the projection callback (NULL removes it).
 ///
 /// @param[in,out] mesh the handle
@@ -616,11 +763,11 @@ pub unsafe extern "C" fn hoc_mesh_set_progress(
         h.session.set_progress(callback.map(|f| {
             Box::new(move |p: &Progress| {
                 let stage = match p.stage {
-                    Stage::Elevate => 0,
-                    Stage::Project => 1,
-                    Stage::Increment => 2,
-                    Stage::Quality => 3,
-                    Stage::Optimize => 4,
+                    Stage::Elevate => HOC_STAGE_ELEVATE,
+                    Stage::Project => HOC_STAGE_PROJECT,
+                    Stage::Increment => HOC_STAGE_INCREMENT,
+                    Stage::Quality => HOC_STAGE_QUALITY,
+                    Stage::Optimize => HOC_STAGE_OPTIMIZE,
                 };
                 let ud = &ud;
                 // SAFETY: host-provided callback with its own user data.
@@ -1060,6 +1207,7 @@ pub unsafe extern "C" fn hoc_mesh_quality(mesh: *const HocMesh, out: *mut HocQua
             certified_min_q3: q.certified_min_q3,
             n_certified_invalid: q.n_certified_invalid,
             n_uncertain: q.n_uncertain,
+            max_projection_distance: h.session.report().map_or(0.0, |r| r.max_projection_distance),
         };
         Ok(())
     })
@@ -1442,17 +1590,41 @@ pub unsafe extern "C" fn hoc_mesh_get_input_cells(
     })
 }
 
-/// Node coordinates of the current mesh (`n_nodes * dim` doubles). Nodes
-/// `0..n_vertices-1` are the input vertices.
+fn node_ordering(ordering: HocNodeOrdering) -> std::result::Result<NodeOrdering, (HocStatus, String)> {
+    match ordering {
+        HOC_ORDERING_NATIVE => Ok(NodeOrdering::Native),
+        HOC_ORDERING_GMSH => Ok(NodeOrdering::Gmsh),
+        HOC_ORDERING_VTK => Ok(NodeOrdering::Vtk),
+        o => Err(arg(format!("unknown node ordering {o}"))),
+    }
+}
+
+/// Node coordinates of the current mesh (`n_nodes * dim` doubles) for
+/// connectivity in `ordering`. Nodes `0..n_vertices-1` are the input
+/// vertices, and the numbering is the same for every ordering; the positions
+/// are not:
+/// - HOC_ORDERING_NATIVE: the mesh's own node set (hoc_mesh_set_order's
+///   spacing; warp & blend by default);
+/// - HOC_ORDERING_GMSH, HOC_ORDERING_VTK: the equispaced node set that gmsh's
+///   and VTK's Lagrange cells interpolate at. The curved element map is
+///   evaluated there, so a file written with these nodes and the matching
+///   hoc_mesh_get_cells connectivity has exactly the curved geometry.
 ///
 /// @param[in] mesh the handle
+/// @param[in] ordering HOC_ORDERING_NATIVE, _GMSH or _VTK: that of the connectivity used with them
 /// @param[in] n_nodes must equal hoc_mesh_node_count
 /// @param[out] coords `n_nodes * dim` doubles
-/// @return HOC_OK, HOC_ERROR_NULL_POINTER or HOC_ERROR_BUFFER_SIZE
+/// @return HOC_OK, HOC_ERROR_NULL_POINTER, HOC_ERROR_INVALID_ARGUMENT or HOC_ERROR_BUFFER_SIZE
 #[no_mangle]
-pub unsafe extern "C" fn hoc_mesh_get_nodes(mesh: *const HocMesh, n_nodes: usize, coords: *mut f64) -> HocStatus {
+pub unsafe extern "C" fn hoc_mesh_get_nodes(
+    mesh: *const HocMesh,
+    ordering: HocNodeOrdering,
+    n_nodes: usize,
+    coords: *mut f64,
+) -> HocStatus {
     guard(mesh, || {
         let h = handle(mesh)?;
+        let ordering = node_ordering(ordering)?;
         let m = h.session.mesh();
         if n_nodes != m.n_nodes() {
             return Err((HOC_ERROR_BUFFER_SIZE, format!("n_nodes = {n_nodes}, but the mesh has {}", m.n_nodes())));
@@ -1460,12 +1632,17 @@ pub unsafe extern "C" fn hoc_mesh_get_nodes(mesh: *const HocMesh, n_nodes: usize
         if coords.is_null() {
             return Err(null("coords"));
         }
-        std::slice::from_raw_parts_mut(coords, m.coords.len()).copy_from_slice(&m.coords);
+        std::slice::from_raw_parts_mut(coords, m.coords.len()).copy_from_slice(&h.session.nodes(ordering));
         Ok(())
     })
 }
 
 /// Cell connectivity of the current mesh in the requested node ordering.
+/// HOC_ORDERING_NATIVE: vertices, then edge, face and interior nodes;
+/// HOC_ORDERING_GMSH: gmsh's MSH element node order (types
+/// 9/21/23/25/42-46 and 11/29/30/31/71-75); HOC_ORDERING_VTK: VTK's Lagrange
+/// cells (69, 71). Take the coordinates from hoc_mesh_get_nodes with the
+/// same ordering: gmsh and VTK cells mean equispaced nodes.
 ///
 /// @param[in] mesh the handle
 /// @param[in] ordering HOC_ORDERING_NATIVE, _GMSH or _VTK
@@ -1481,12 +1658,7 @@ pub unsafe extern "C" fn hoc_mesh_get_cells(
 ) -> HocStatus {
     guard(mesh, || {
         let h = handle(mesh)?;
-        let ordering = match ordering {
-            HOC_ORDERING_NATIVE => NodeOrdering::Native,
-            HOC_ORDERING_GMSH => NodeOrdering::Gmsh,
-            HOC_ORDERING_VTK => NodeOrdering::Vtk,
-            o => return Err(arg(format!("unknown node ordering {o}"))),
-        };
+        let ordering = node_ordering(ordering)?;
         let m = h.session.mesh();
         if len != m.cells.len() {
             return Err((HOC_ERROR_BUFFER_SIZE, format!("len = {len}, but the connectivity has {}", m.cells.len())));
@@ -1529,9 +1701,17 @@ pub unsafe extern "C" fn hoc_mesh_write(mesh: *const HocMesh, path: *const c_cha
 /// @return a NUL-terminated string owned by the handle or the thread
 #[no_mangle]
 pub unsafe extern "C" fn hoc_mesh_last_error(mesh: *const HocMesh) -> *const c_char {
-    match mesh.as_ref() {
-        Some(h) => h.last_error.borrow().as_ptr(),
-        None => THREAD_LAST_ERROR.with(|e| e.borrow().as_ptr()),
+    let thread = || THREAD_LAST_ERROR.with(|e| e.borrow().as_ptr());
+    let Some(h) = mesh.as_ref() else { return thread() };
+    if REFUSED.with(|r| r.get()) == mesh {
+        return thread();
+    }
+    match h.claim() {
+        Some(mut c) => c.state().last_error.as_ptr(),
+        None => {
+            set_thread_error(busy_message());
+            thread()
+        }
     }
 }
 
@@ -1553,6 +1733,7 @@ pub extern "C" fn hoc_status_string(status: HocStatus) -> *const c_char {
         HOC_ERROR_CANCELLED => c"cancelled by the progress callback",
         HOC_ERROR_BUFFER_SIZE => c"buffer has the wrong size",
         HOC_ERROR_PANIC => c"internal error",
+        HOC_ERROR_BUSY => c"the handle is busy with another call",
         _ => c"unknown status",
     };
     s.as_ptr()
@@ -1564,4 +1745,28 @@ pub extern "C" fn hoc_status_string(status: HocStatus) -> *const c_char {
 #[no_mangle]
 pub extern "C" fn hoc_version() -> *const c_char {
     concat!(env!("CARGO_PKG_VERSION"), "\0").as_ptr() as *const c_char
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::curve::{CurveOptions, DEFAULT_MAX_SPLITS};
+
+    #[test]
+    fn version_macros_are_the_crate_version() {
+        let v = |s: &str| s.parse::<c_int>().unwrap();
+        assert_eq!(HOCURVE_VERSION_MAJOR, v(env!("CARGO_PKG_VERSION_MAJOR")));
+        assert_eq!(HOCURVE_VERSION_MINOR, v(env!("CARGO_PKG_VERSION_MINOR")));
+        assert_eq!(HOCURVE_VERSION_PATCH, v(env!("CARGO_PKG_VERSION_PATCH")));
+    }
+
+    #[test]
+    fn the_header_defaults_are_the_library_defaults() {
+        let o = CurveOptions::default();
+        assert_eq!(HOC_DEFAULT_INCREMENTS as usize, o.increments);
+        assert_eq!(HOC_DEFAULT_MAX_SPLITS as usize, o.max_splits);
+        assert_eq!(HOC_DEFAULT_MAX_SPLITS as usize, DEFAULT_MAX_SPLITS);
+        assert_eq!(HOC_DEFAULT_YOUNG, o.young);
+        assert_eq!(HOC_DEFAULT_POISSON, o.poisson);
+    }
 }

@@ -5,7 +5,7 @@ use std::path::Path;
 use super::CellMeshView;
 use crate::mesh::HighOrderMesh;
 use crate::quality::ElementQuality;
-use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
+use crate::reference::{NodeSet, NodeSpacing};
 use crate::{Error, Result};
 
 /// Check that `path` ends in `.msh` or `.vtu`.
@@ -24,12 +24,7 @@ pub fn check_mesh_extension(path: &Path) -> Result<()> {
 pub fn write_mesh(path: &Path, mesh: &HighOrderMesh, cell_quality: Option<&[ElementQuality]>) -> Result<()> {
     check_mesh_extension(path)?;
     let equi = NodeSet::new(mesh.simplex, mesh.order, NodeSpacing::Equispaced);
-    let coords = if mesh.spacing == NodeSpacing::Equispaced {
-        mesh.coords.clone()
-    } else {
-        let native = NodeSet::new(mesh.simplex, mesh.order, mesh.spacing);
-        mesh.coords_at_nodes(&LagrangeBasis::new(&native), &equi)
-    };
+    let coords = mesh.equispaced_coords();
     let view = CellMeshView {
         simplex: mesh.simplex,
         order: mesh.order,

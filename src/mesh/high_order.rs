@@ -9,6 +9,7 @@
 //! each cell. A node's place therefore depends only on the entity it lies on,
 //! never on the cell that visits it.
 
+use std::borrow::Cow;
 use std::collections::HashMap;
 
 use super::topology::Topology;
@@ -92,6 +93,18 @@ impl HighOrderMesh {
             }
         }
         out
+    }
+
+    /// The coordinates at the equispaced node set, the one gmsh and VTK
+    /// cells interpolate at: this mesh's own when its nodes are equispaced,
+    /// else resampled by [`HighOrderMesh::coords_at_nodes`].
+    pub fn equispaced_coords(&self) -> Cow<'_, [f64]> {
+        if self.spacing == NodeSpacing::Equispaced {
+            return Cow::Borrowed(&self.coords);
+        }
+        let native = NodeSet::new(self.simplex, self.order, self.spacing);
+        let equi = NodeSet::new(self.simplex, self.order, NodeSpacing::Equispaced);
+        Cow::Owned(self.coords_at_nodes(&LagrangeBasis::new(&native), &equi))
     }
 
     /// Elevate a validated, positively oriented linear mesh to order `order`

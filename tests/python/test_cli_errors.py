@@ -119,3 +119,12 @@ def test_unwritable_report_fails_before_writing_the_mesh(hocurve, plate, tmp_pat
     src, _g, tags = plate
     args = curve_args(src, tmp_path / "o.msh", geometry=hole(tags)) + ["--report", tmp_path / "nodir" / "r.json"]
     assert_fails(hocurve, tmp_path, args, "cannot write")
+
+
+def test_every_option_the_usage_lists_is_accepted(hocurve, plate, tmp_path):
+    """`hocurve curve` accepts the Newton settings its usage text shows."""
+    src, _g, tags = plate
+    out = tmp_path / "o.msh"
+    r = hocurve.run(*curve_args(src, out, "--tolerance", "1e-8", "--max-iterations", "30", geometry=hole(tags)))
+    assert r.returncode == 0, r.stderr
+    assert out.exists()

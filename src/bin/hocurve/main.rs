@@ -348,6 +348,8 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
             "max-splits",
             "condense",
             "optimize",
+            "tolerance",
+            "max-iterations",
             "output",
             "report",
         ],
