@@ -378,7 +378,7 @@ pub fn validate_options(opts: &CurveOptions) -> Result<LinearElastic> {
     LinearElastic::try_from_young_poisson(opts.young, opts.poisson)
 }
 
-/// Curve `linear` onto the geometry of `projector` (SPEC section 1).
+/// Curve `linear` onto the geometry of `projector`.
 ///
 /// `progress` is called at each stage and increment; returning `false`
 /// cancels the run with [`Error::Cancelled`].

@@ -1,5 +1,5 @@
-//! The Poisson-ratio / order / formulation study (paper §6,
-//! Figs. 6 and 14–17): minimum scaled-Jacobian quality Q3 of the curved mesh
+//! The Poisson-ratio / order / formulation study (the paper's
+//! section 6, Figs. 6 and 14–17: Poya, Sevilla & Gil, Comput. Mech. 2016): minimum scaled-Jacobian quality Q3 of the curved mesh
 //! against ν for ILE, CIL and NONLINEAR at several orders p, on a coarse
 //! curved-boundary case and on boundary layers of growing stretching.
 //!

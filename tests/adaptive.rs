@@ -1,4 +1,4 @@
-//! Adaptive load stepping (issue 7, criterion 1): an increment that inverts
+//! Adaptive load stepping: an increment that inverts
 //! a cell or whose Newton iteration fails is undone and halved.
 
 use hocurve::cases::{self, Case};

@@ -1,4 +1,4 @@
-//! The bad-input catalogue of the `.msh` reader (issue 7): a table of
+//! The bad-input catalogue of the `.msh` reader: a table of
 //! malformed files, each with the error it must give (its kind and a
 //! substring of the message that says what was wrong). Every file goes
 //! through the library path (`parse_msh_bytes` → `to_linear_mesh` →

@@ -1,5 +1,5 @@
-//! Certified validity (issue 7): the Bernstein bounds of det J never claim more
-//! than the samples show, and they catch an element inverted between samples.
+//! Certified validity: the Bernstein bounds of det J never claim more than the
+//! samples show, and they catch an element inverted between samples.
 
 use hocurve::cases;
 use hocurve::curve::{curve, CurveOptions, Formulation};

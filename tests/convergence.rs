@@ -1,4 +1,4 @@
-//! p-convergence on curved meshes (issue 2, criterion 4; paper Figs. 25, 33).
+//! p-convergence on curved meshes (the paper's Figs. 25 and 33).
 //!
 //! On a fixed coarse mesh of an annulus (2D) and a spherical shell (3D), both
 //! boundaries curved, we measure for p = 1..6:

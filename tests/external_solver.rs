@@ -1,4 +1,4 @@
-//! The external linear-solver hook (issue 5): the host sees each reduced
+//! The external linear-solver hook: the host sees each reduced
 //! system as a full symmetric CSR matrix, and a host CG gives the mesh the
 //! direct solver gives.
 

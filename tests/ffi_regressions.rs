@@ -1,5 +1,5 @@
 //! Regression tests of the C ABI called from Rust, for bugs found by the
-//! bad-input catalogue (issue 7) and the fuzzers (`fuzz/`).
+//! bad-input catalogue and the fuzzers (`fuzz/`).
 
 use std::ffi::CStr;
 use std::ptr::null_mut;

@@ -1,6 +1,6 @@
-//! The direct solver's fill-reducing orderings (issue 5): the nested-dissection
-//! ordering is a permutation that keeps each node's dofs together, and AMD and
-//! nested dissection solve the same systems alike.
+//! The direct solver's fill-reducing orderings: the nested-dissection ordering
+//! is a permutation that keeps each node's dofs together, and AMD and nested
+//! dissection solve the same systems alike.
 
 mod common;
 

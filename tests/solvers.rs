@@ -1,4 +1,4 @@
-//! The iterative solver path (issue 5): PCG with the p-multigrid
+//! The iterative solver path: PCG with the p-multigrid
 //! preconditioner gives the direct solver's meshes, its coarse operators are
 //! the Galerkin products, and it beats Jacobi-preconditioned CG.
 

@@ -1,4 +1,4 @@
-//! Issue 4's study, quick subset: shape of the results, ILE ≈ CIL, SVG output.
+//! The formulation study, quick subset: shape of the results, ILE ≈ CIL, SVG output.
 
 use hocurve::study::{run, StudyConfig};
 

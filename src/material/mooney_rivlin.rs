@@ -21,7 +21,8 @@ pub struct MooneyRivlin {
 }
 
 impl MooneyRivlin {
-    /// λ = λ_lin and β = μ_lin/2 − α (SPEC default α = β = μ_lin/4).
+    /// λ = λ_lin and β = μ_lin/2 − α (the default, used by
+    /// `MaterialModel::MooneyRivlin`, is α = β = μ_lin/4).
     pub fn from_lame(lambda: f64, mu: f64, alpha: f64) -> MooneyRivlin {
         MooneyRivlin { alpha, beta: 0.5 * mu - alpha, lambda }
     }
@@ -102,7 +103,7 @@ mod tests {
     use super::super::LinearElastic;
     use super::*;
 
-    /// The SPEC default (α = β) and a lopsided split (α = 3β).
+    /// The default split (α = β = μ/4) and a lopsided one (α = 3β).
     fn models(nu: f64) -> ([MooneyRivlin; 2], LinearElastic) {
         let lin = LinearElastic::try_from_young_poisson(1.0, nu).unwrap();
         (

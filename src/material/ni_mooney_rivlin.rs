@@ -40,8 +40,9 @@ pub struct NearlyIncompressibleMooneyRivlin {
 }
 
 impl NearlyIncompressibleMooneyRivlin {
-    /// β = (μ_lin − 2α)/(3√3), κ = λ_lin + 4α/3 + 2√3 β (SPEC default α = μ_lin/2,
-    /// giving β = 0). β < 0 (α > μ_lin/2) is accepted but makes Ψ non-convex in I2.
+    /// β = (μ_lin − 2α)/(3√3), κ = λ_lin + 4α/3 + 2√3 β (the default, used by
+    /// `MaterialModel::NearlyIncompressibleMooneyRivlin`, is α = μ_lin/2, giving
+    /// β = 0). β < 0 (α > μ_lin/2) is accepted but makes Ψ non-convex in I2.
     pub fn from_lame(lambda: f64, mu: f64, alpha: f64) -> NearlyIncompressibleMooneyRivlin {
         let beta = (mu - 2.0 * alpha) / (3.0 * SQRT3);
         NearlyIncompressibleMooneyRivlin { alpha, beta, kappa: lambda + 4.0 * alpha / 3.0 + 2.0 * SQRT3 * beta }
@@ -101,7 +102,7 @@ mod tests {
     use super::*;
     use crate::mapping::{cofactor, det, matmul};
 
-    /// The SPEC default (α = μ/2, β = 0) and α = μ/4 (β > 0) so that the
+    /// The default (α = μ/2, β = 0) and α = μ/4 (β > 0) so that the
     /// β terms are exercised.
     fn models(nu: f64) -> ([NearlyIncompressibleMooneyRivlin; 2], LinearElastic) {
         let lin = LinearElastic::try_from_young_poisson(1.0, nu).unwrap();

@@ -10,7 +10,7 @@
 //! perturbations of 6e-8 of the matrix); PCG itself multiplies in double.
 //!
 //! Measured on the p = 4 sphere-in-box mesh of bench/compare_gmsh.sh (76,542
-//! unknowns), in the README's performance section.
+//! unknowns), in docs/performance.md.
 
 use rayon::prelude::*;
 

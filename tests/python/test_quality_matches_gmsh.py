@@ -9,7 +9,7 @@ Three figures per case, all printed:
     would change the Jacobians, so this is the sharp check;
   * gmsh's AnalyseMeshQuality plugin (Bézier bounds over the whole element):
     a lower bound of the true min J / max J, so hocurve must not read below it,
-    and (issue 2, criterion 6) must be within 0.02 of it on valid meshes.
+    and must be within 0.02 of it on valid meshes.
 """
 import json
 
