@@ -3,9 +3,9 @@
 
 use hocurve::cases;
 use hocurve::curve::{curve, CurveOptions, Formulation};
-use hocurve::mapping;
 use hocurve::quality::{element_quality, sampling_cache, JacobianBernstein, Verdict};
 use hocurve::reference::{LagrangeBasis, NodeSet, NodeSpacing, Simplex};
+use hocurve::{linalg, mapping};
 
 fn lcg(seed: &mut u64) -> f64 {
     *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
@@ -32,7 +32,7 @@ fn fine_min_det(basis: &LagrangeBasis, xe: &[f64], n: usize) -> f64 {
         for j in 0..=n - i {
             let xi = [i as f64 / n as f64, j as f64 / n as f64, 0.0];
             basis.eval_grad_into(&xi, &mut g);
-            m = m.min(mapping::det(d, &mapping::jacobian(d, xe, &g)));
+            m = m.min(linalg::det(d, &mapping::jacobian(d, xe, &g)));
         }
     }
     m
@@ -144,7 +144,7 @@ fn exact_bernstein_coefficients_reproduce_det_j_at_every_order() {
                     for _ in 0..200 {
                         let l = random_lambda(d, &mut seed);
                         basis.eval_grad_into(&[l[1], l[2], l[3]], &mut g);
-                        let want = mapping::det(d, &mapping::jacobian(d, &xe, &g));
+                        let want = linalg::det(d, &mapping::jacobian(d, &xe, &g));
                         err = err.max((jb.eval(&coef, &l) - want).abs());
                         scale = scale.max(want.abs());
                         smin = smin.min(want);

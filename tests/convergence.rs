@@ -11,6 +11,7 @@
 
 use hocurve::cases::{self, Case};
 use hocurve::curve::{curve, CurveOptions, CurvedMesh};
+use hocurve::linalg;
 use hocurve::mapping::{self, ElementCache};
 use hocurve::quadrature::simplex_rule;
 use hocurve::reference::{LagrangeBasis, NodeSet};
@@ -40,7 +41,7 @@ fn interpolation_error(c: &CurvedMesh, coords: &[f64]) -> (f64, f64) {
             .collect();
         for q in 0..cache.n_points() {
             let vals = &cache.values[q * n..(q + 1) * n];
-            let j = mapping::det(dim, &mapping::jacobian(dim, &xe, cache.grads_at(q)));
+            let j = linalg::det(dim, &mapping::jacobian(dim, &xe, cache.grads_at(q)));
             let mut x = [0.0; 3];
             for d in 0..dim {
                 x[d] = (0..n).map(|a| vals[a] * xe[a * dim + d]).sum();

@@ -13,7 +13,8 @@
 //! padded with F_33 = 1 and only in-plane components are used.
 
 use super::ElementKernel;
-use crate::mapping::{self, ElementCache, Mat3};
+use crate::linalg::{self, Mat3};
+use crate::mapping::{self, ElementCache};
 use crate::material::{Material, Tangent};
 use crate::mesh::HighOrderMesh;
 
@@ -65,7 +66,7 @@ impl<'a> MaterialKernel<'a> {
                         x
                     })
                     .collect();
-                mapping::inverse(dim, &mapping::affine_jacobian(dim, &xv)).0
+                linalg::inverse(dim, &mapping::affine_jacobian(dim, &xv)).0
             })
             .collect();
         MaterialKernel { cache, material, mode, straight_jinv, fibres }
@@ -115,12 +116,12 @@ impl ElementKernel for MaterialKernel<'_> {
         for q in 0..c.n_points() {
             let rg = c.grads_at(q);
             let jx = mapping::jacobian(dim, xe, rg);
-            let (jinv, det) = mapping::inverse(dim, &jx);
+            let (jinv, det) = linalg::inverse(dim, &jx);
             if det.is_nan() || det <= 0.0 {
                 return Err(det);
             }
             mapping::physical_gradients_into(dim, rg, &jinv, &mut ws.grad);
-            let f = pad(dim, &mapping::matmul(dim, &jx, &self.straight_jinv[cell]));
+            let f = pad(dim, &linalg::matmul(dim, &jx, &self.straight_jinv[cell]));
             let (sigma, tangent) = match &c0 {
                 Some(c0) => (if re.is_some() { self.material.stress(&f, fibre) } else { [[0.0; 3]; 3] }, *c0),
                 None => self.material.stress_and_tangent(&f, fibre),

@@ -3,6 +3,7 @@
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, Par};
 
+use crate::linalg;
 use crate::mapping;
 use crate::mapping::ElementCache;
 use crate::material::LinearElastic;
@@ -67,7 +68,7 @@ impl LinearElasticKernel {
         for q in 0..c.n_points() {
             let rg = c.grads_at(q);
             let jac = mapping::jacobian(dim, xe, rg);
-            let (jinv, det) = mapping::inverse(dim, &jac);
+            let (jinv, det) = linalg::inverse(dim, &jac);
             if det.is_nan() || det <= 0.0 {
                 return Err(det);
             }

@@ -27,7 +27,7 @@ pub use kernel::{KernelWorkspace, LinearElasticKernel};
 pub use transfer::multigrid_levels;
 
 use crate::mesh::{HighOrderMesh, NodeConstraint};
-use crate::solver::SymmetricCsc;
+use crate::sparse::SymmetricCsc;
 use crate::{Error, Result};
 
 /// Numbering of the degrees of freedom: dof = node · dim + component. The

@@ -18,7 +18,7 @@ use std::collections::HashMap;
 use super::DofMap;
 use crate::mesh::{HighOrderMesh, NodeConstraint};
 use crate::reference::{LagrangeBasis, NodeSet};
-use crate::solver::{SparseRows, SymmetricCsc};
+use crate::sparse::{SparseRows, SymmetricCsc};
 
 /// The orders of the p-multigrid hierarchy below `p`: the even orders below
 /// p, every other one, then 1 (6 → 4 → 2 → 1, 5 → 4 → 2 → 1, 3 → 2 → 1).

@@ -42,7 +42,7 @@
 
 use super::tensor::{delta, dot3, matvec, transpose, ZERO_TANGENT};
 use super::Tangent;
-use crate::mapping::{cofactor, det, matmul, Mat3};
+use crate::linalg::{cofactor, det, matmul, Mat3};
 
 /// Index of each invariant in the derivative arrays.
 pub(crate) const I1: usize = 0;

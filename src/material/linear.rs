@@ -8,7 +8,7 @@
 
 use super::tensor::{contract, ddot, isotropic_tangent, small_strain};
 use super::{LinearElastic, Material, Tangent};
-use crate::mapping::Mat3;
+use crate::linalg::Mat3;
 
 impl Material for LinearElastic {
     fn name(&self) -> &'static str {

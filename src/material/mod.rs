@@ -47,7 +47,7 @@ pub use ni_mooney_rivlin::NearlyIncompressibleMooneyRivlin;
 pub use ti_linear::{TiEngineeringConstants, TiStiffness, TransverselyIsotropicLinear};
 pub use transversely_isotropic::TransverselyIsotropic;
 
-use crate::mapping::Mat3;
+use crate::linalg::Mat3;
 use crate::{Error, Result};
 
 /// Isotropic linear elasticity in Lamé form.

@@ -10,7 +10,7 @@
 use super::invariants::{InvariantEnergy, Invariants, I1, I2, JAC};
 use super::tensor::{delta, transpose};
 use super::{Material, Tangent};
-use crate::mapping::{det, matmul, Mat3};
+use crate::linalg::{det, matmul, Mat3};
 
 /// Compressible Mooney–Rivlin constants.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -7,7 +7,7 @@
 use super::invariants::{InvariantEnergy, Invariants, I1, JAC};
 use super::tensor::{delta, transpose};
 use super::{Material, Tangent};
-use crate::mapping::{det, matmul, Mat3};
+use crate::linalg::{det, matmul, Mat3};
 
 /// Neo-Hookean constants.
 #[derive(Debug, Clone, Copy, PartialEq)]

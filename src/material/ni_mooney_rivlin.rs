@@ -27,7 +27,7 @@
 
 use super::invariants::{invariant_stress, invariant_stress_and_tangent, InvariantEnergy, Invariants, I1, I2, JAC};
 use super::{Material, Tangent};
-use crate::mapping::Mat3;
+use crate::linalg::Mat3;
 
 const SQRT3: f64 = 1.732_050_807_568_877_2;
 
@@ -100,7 +100,7 @@ mod tests {
     use super::super::testing::*;
     use super::super::LinearElastic;
     use super::*;
-    use crate::mapping::{cofactor, det, matmul};
+    use crate::linalg::{cofactor, det, matmul};
 
     /// The default (α = μ/2, β = 0) and α = μ/4 (β > 0) so that the
     /// β terms are exercised.

@@ -2,7 +2,7 @@
 //! fourth-order tensors, double contraction and the small strain of F.
 
 use super::Tangent;
-use crate::mapping::Mat3;
+use crate::linalg::Mat3;
 
 pub(crate) const ZERO_TANGENT: Tangent = [[[[0.0; 3]; 3]; 3]; 3];
 

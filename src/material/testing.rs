@@ -4,7 +4,7 @@
 
 use super::tensor::{contract, delta, small_strain};
 use super::{Material, Tangent};
-use crate::mapping::{det, matmul, Mat3};
+use crate::linalg::{det, matmul, Mat3};
 
 pub(crate) const IDENTITY: Mat3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 

@@ -23,7 +23,7 @@
 
 use super::tensor::{contract, ddot, delta, small_strain, ZERO_TANGENT};
 use super::{Material, Tangent};
-use crate::mapping::{inverse, Mat3};
+use crate::linalg::{inverse, Mat3};
 use crate::{Error, Result};
 
 /// Engineering constants of a transversely isotropic solid: transverse E, ν;

@@ -46,7 +46,7 @@ use super::invariants::{
     invariant_stress, invariant_stress_and_tangent, InvariantEnergy, Invariants, I1, I2, I4, I5, JAC,
 };
 use super::{Material, Tangent, TiStiffness};
-use crate::mapping::Mat3;
+use crate::linalg::Mat3;
 
 /// Constants of the Bonet–Burton transversely isotropic model.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -123,7 +123,7 @@ mod tests {
     use super::super::ti_linear::tests::engineering_from_tangent;
     use super::super::{make_material, MaterialModel, TiEngineeringConstants};
     use super::*;
-    use crate::mapping::{det, matmul};
+    use crate::linalg::{det, matmul};
 
     fn model(nu: f64) -> (TransverselyIsotropic, TiStiffness) {
         let s = TiEngineeringConstants::paper_default(1.0, nu).try_stiffness().unwrap();

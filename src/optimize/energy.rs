@@ -17,7 +17,8 @@
 //! Gargallo-Peiró et al. (2015), with the straight-sided element as the
 //! ideal one, so an element that stays straight has μ = 1 everywhere.
 
-use crate::mapping::{self, Mat3};
+use crate::linalg::{self, Mat3};
+use crate::mapping;
 
 /// Weight γ of the size term.
 pub const SIZE_WEIGHT: f64 = 0.5;
@@ -26,7 +27,7 @@ pub const SIZE_WEIGHT: f64 = 0.5;
 /// J ≤ 0, or a non-finite F).
 #[inline]
 pub fn distortion(dim: usize, f: &Mat3, delta: f64) -> Option<(f64, Mat3)> {
-    let j = mapping::det(dim, f);
+    let j = linalg::det(dim, f);
     let s = (j * j + 4.0 * delta * delta).sqrt();
     let sigma = 0.5 * (j + s);
     if sigma.is_nan() || sigma <= 0.0 || !sigma.is_finite() {
@@ -53,7 +54,7 @@ pub fn distortion(dim: usize, f: &Mat3, delta: f64) -> Option<(f64, Mat3)> {
     let dsigma = sigma / s;
     let dmu_dsigma = -(2.0 / d) * shape / sigma - SIZE_WEIGHT * (j * j + 1.0) / (2.0 * sigma * sigma);
     let dmu_dj = SIZE_WEIGHT * j / sigma + dmu_dsigma * dsigma;
-    let cof = mapping::cofactor(dim, f);
+    let cof = linalg::cofactor(dim, f);
     let mut g = [[0.0; 3]; 3];
     for i in 0..dim {
         for k in 0..dim {
@@ -100,7 +101,7 @@ impl SampleRule {
                 v
             })
             .collect();
-        let (w_inv, det) = mapping::inverse(dim, &mapping::affine_jacobian(dim, &xv));
+        let (w_inv, det) = linalg::inverse(dim, &mapping::affine_jacobian(dim, &xv));
         if det == 0.0 || !det.is_finite() {
             return None;
         }
@@ -126,7 +127,7 @@ impl SampleRule {
 
     /// Smallest J = det F over the sample points of the element.
     pub fn min_det(&self, e: &ElementSamples, xe: &[f64]) -> f64 {
-        (0..self.n_points()).map(|q| mapping::det(self.dim, &self.deformation(e, xe, q))).fold(f64::INFINITY, f64::min)
+        (0..self.n_points()).map(|q| linalg::det(self.dim, &self.deformation(e, xe, q))).fold(f64::INFINITY, f64::min)
     }
 
     /// The element energy Σ_q w_q μ(F_q), adding its gradient with respect to
@@ -245,7 +246,7 @@ mod tests {
         let f = sample_f(3, 7);
         let (c, s) = (0.6f64, 0.8f64);
         let r = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]];
-        let rf = mapping::matmul(3, &r, &f);
+        let rf = linalg::matmul(3, &r, &f);
         let (a, b) = (distortion(3, &f, 0.0).unwrap().0, distortion(3, &rf, 0.0).unwrap().0);
         assert!((a - b).abs() < 1e-13);
     }

@@ -182,7 +182,7 @@ mod tests {
                                 }
                             }
                         }
-                        rule.weights[q] * crate::mapping::det(dim, &j)
+                        rule.weights[q] * crate::linalg::det(dim, &j)
                     })
                     .sum()
             })

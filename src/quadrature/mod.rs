@@ -2,11 +2,10 @@
 //! on the unit interval, with the 1D Gauss–Jacobi and Gauss–Lobatto–Legendre
 //! rules they are built from. Nothing is cached here: callers cache rules.
 
-pub mod gauss_jacobi;
 pub mod simplex_rules;
 mod symmetric_data;
 
-pub use gauss_jacobi::{gauss_jacobi, gauss_lobatto_legendre, gauss_lobatto_legendre_weights};
+pub use crate::jacobi::{gauss_jacobi, gauss_lobatto_legendre, gauss_lobatto_legendre_weights};
 pub use simplex_rules::{collapsed_rule, line_rule, simplex_rule};
 
 /// A quadrature rule ∫ f ≈ Σ_q w_q f(x_q) on a reference domain.

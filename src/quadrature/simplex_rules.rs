@@ -12,7 +12,8 @@
 //! positive weights and all their points strictly inside.
 
 use super::symmetric_data::{TET, TRI};
-use super::{gauss_jacobi, QuadratureRule};
+use super::QuadratureRule;
+use crate::jacobi::gauss_jacobi;
 use crate::reference::Simplex;
 
 /// Number of Gauss points per direction for exactness to `degree`: n = ⌈(degree + 1)/2⌉ (at least 1).

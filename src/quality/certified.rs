@@ -495,8 +495,8 @@ fn longest_edge(verts: &[[f64; 3]], d: usize) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mapping;
     use crate::reference::{NodeSet, NodeSpacing, Simplex};
+    use crate::{linalg, mapping};
 
     fn lcg(seed: &mut u64) -> f64 {
         *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
@@ -531,7 +531,7 @@ mod tests {
         let d = basis.simplex().dim();
         let mut g = vec![0.0; basis.len() * d];
         basis.eval_grad_into(&[l[1], l[2], l[3]], &mut g);
-        mapping::det(d, &mapping::jacobian(d, xe, &g))
+        linalg::det(d, &mapping::jacobian(d, xe, &g))
     }
 
     #[test]

@@ -25,6 +25,7 @@ pub use certified::{CertifiedJacobian, JacobianBernstein, Verdict};
 
 use rayon::prelude::*;
 
+use crate::linalg;
 use crate::mapping::{self, ElementCache};
 use crate::quadrature::{collapsed_rule, simplex_rule};
 use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
@@ -105,15 +106,15 @@ pub fn element_quality(cache: &ElementCache, xe: &[f64], xs: &[f64], fibre: Opti
             v
         })
         .collect();
-    let (jx_inv, _) = mapping::inverse(dim, &mapping::affine_jacobian(dim, &xv));
+    let (jx_inv, _) = linalg::inverse(dim, &mapping::affine_jacobian(dim, &xv));
     let (mut i1min, mut i1max) = (f64::INFINITY, 0.0f64);
     let (mut i2min, mut i2max) = (f64::INFINITY, 0.0f64);
     let (mut jmin, mut jmax, mut jabsmax) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
     let (mut i4min, mut i4max, mut i5min, mut i5max) = (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64);
     for q in 0..cache.n_points() {
         let dxdxi = mapping::jacobian(dim, xe, cache.grads_at(q));
-        let f = mapping::matmul(dim, &dxdxi, &jx_inv);
-        let h = mapping::cofactor(dim, &f);
+        let f = linalg::matmul(dim, &dxdxi, &jx_inv);
+        let h = linalg::cofactor(dim, &f);
         let (mut i1, mut i2) = (0.0, 0.0);
         for i in 0..dim {
             for j in 0..dim {
@@ -126,7 +127,7 @@ pub fn element_quality(cache: &ElementCache, xe: &[f64], xs: &[f64], fibre: Opti
         // taken through the curved vertices, an interior vertex moved by the
         // curving (one that a removed boundary cap added) can leave that
         // straight tet inverted under an element that is valid everywhere.
-        let j = mapping::det(dim, &dxdxi);
+        let j = linalg::det(dim, &dxdxi);
         if let Some(n) = fibre {
             // I4 = FN·FN, I5 = FᵀFN·FᵀFN (2D: in-plane part of N; F33 = 1).
             let mut fn_ = [0.0; 3];
@@ -270,7 +271,7 @@ impl ValidityCheck {
         }
         let dim = self.basis.simplex().dim();
         (0..self.points.n_points()).any(|q| {
-            let j = mapping::det(dim, &mapping::jacobian(dim, xe, self.points.grads_at(q)));
+            let j = linalg::det(dim, &mapping::jacobian(dim, xe, self.points.grads_at(q)));
             j.is_nan() || j <= 0.0
         })
     }
@@ -407,7 +408,7 @@ mod tests {
         let (mut i1, mut i2) = (Vec::new(), Vec::new());
         for q in 0..cache.n_points() {
             let f = mapping::jacobian(3, &xe, cache.grads_at(q));
-            let h = mapping::cofactor(3, &f);
+            let h = linalg::cofactor(3, &f);
             i1.push(f.iter().flatten().map(|v| v * v).sum::<f64>());
             i2.push(h.iter().flatten().map(|v| v * v).sum::<f64>());
         }

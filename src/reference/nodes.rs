@@ -16,7 +16,7 @@
 //! follow the lexicographic order of their multi-index.
 
 use super::simplex::{Simplex, TET_FACES};
-use crate::quadrature::gauss_lobatto_legendre;
+use crate::jacobi::gauss_lobatto_legendre;
 
 /// How the nodes of a [`NodeSet`] are spaced.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]

@@ -48,7 +48,8 @@
 
 use super::bsr::{BlockSym32, Operator};
 use super::pcg::{pcg, BlockJacobi, PcgFailure, PcgParams, SymmetricOperator, WithValues};
-use super::pmg::{Chebyshev, ChebyshevParams, Hierarchy, SparseRows, VCycle};
+use super::pmg::{Chebyshev, ChebyshevParams, Hierarchy, VCycle};
+use super::SparseRows;
 use super::{DirectSolver, FallbackReason, LinearSolver, SolveStats, SolvedBy, SymmetricCsc};
 use crate::{Error, Result};
 

@@ -10,6 +10,7 @@
 
 pub mod bsr;
 mod cholesky;
+mod direct;
 mod external;
 mod iterative;
 mod lu;
@@ -17,12 +18,13 @@ mod metis;
 pub mod pcg;
 pub mod pmg;
 
+pub use crate::sparse::{SparseRows, SymmetricCsc};
 pub use cholesky::{nested_dissection, node_block_size, DirectOrdering, SparseCholesky};
+pub use direct::DirectSolver;
 pub use external::{CsrView, ExternalAdapter, ExternalSolver, FullCsrPattern, SystemSolver};
 pub use iterative::{IterativeParams, IterativeSolver, FALLBACK_DIRECT_MAX_DOFS};
 pub use lu::try_lu_solve_in_place;
 pub use pcg::PcgFailure;
-pub use pmg::SparseRows;
 
 use crate::{Error, Result};
 
@@ -119,53 +121,6 @@ pub trait LinearSolver {
     fn solve(&mut self, pattern: &SymmetricCsc, values: &[f64], rhs: &[f64], x: &mut [f64]) -> Result<SolveStats>;
 }
 
-/// Sparse Cholesky with the symbolic analysis done once; if a matrix is not
-/// positive definite (a CIL or Newton tangent can lose definiteness), sparse LU.
-pub struct DirectSolver {
-    chol: SparseCholesky,
-}
-
-impl DirectSolver {
-    /// Analyse `pattern` with the ordering [`DirectOrdering::Auto`] picks.
-    pub fn try_new(pattern: &SymmetricCsc) -> Result<DirectSolver> {
-        Self::try_new_with(pattern, DirectOrdering::Auto)
-    }
-
-    /// Analyse `pattern` with this fill-reducing ordering.
-    pub fn try_new_with(pattern: &SymmetricCsc, ordering: DirectOrdering) -> Result<DirectSolver> {
-        Ok(DirectSolver { chol: SparseCholesky::try_analyse_with(pattern, ordering)? })
-    }
-
-    /// The symbolic analysis (ordering used, factor size).
-    pub fn cholesky(&self) -> &SparseCholesky {
-        &self.chol
-    }
-}
-
-impl LinearSolver for DirectSolver {
-    fn name(&self) -> &'static str {
-        "direct"
-    }
-    fn solve(&mut self, pattern: &SymmetricCsc, values: &[f64], rhs: &[f64], x: &mut [f64]) -> Result<SolveStats> {
-        x.copy_from_slice(rhs);
-        match self.chol.try_factor_solve_in_place(pattern, values, x) {
-            Err(Error::Solver(_)) => {
-                x.copy_from_slice(rhs);
-                try_lu_solve_in_place(pattern, values, x)?;
-                Ok(SolveStats {
-                    iterations: 0,
-                    solved_by: SolvedBy::DirectLu,
-                    fallback: Some(FallbackReason::CholeskyFailed),
-                })
-            }
-            r => {
-                r?;
-                Ok(SolveStats { iterations: 0, solved_by: SolvedBy::Direct, fallback: None })
-            }
-        }
-    }
-}
-
 /// Which linear solver runs the increments.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub enum SolverChoice {
@@ -208,45 +163,5 @@ impl SolverChoice {
             "iterative" => Ok(SolverChoice::Iterative),
             _ => Err(Error::InvalidInput(format!("unknown linear solver '{s}' (expected auto, direct or iterative)"))),
         }
-    }
-}
-
-/// Lower triangle (row ≥ column) of a symmetric `n`×`n` sparse matrix, CSC.
-#[derive(Debug, Clone, Default)]
-pub struct SymmetricCsc {
-    pub n: usize,
-    pub col_ptr: Vec<usize>,
-    /// Row indices, sorted within each column; 32-bit (half the memory of
-    /// usize: 0.7 GB at a million unknowns, p = 4), so n < 2^32.
-    pub row_idx: Vec<u32>,
-}
-
-impl SymmetricCsc {
-    /// Number of stored entries.
-    pub fn nnz(&self) -> usize {
-        self.row_idx.len()
-    }
-
-    /// Position of entry (`row`, `col`) (row ≥ col) in the value array.
-    #[inline]
-    pub fn position(&self, row: usize, col: usize) -> Option<usize> {
-        let (s, e) = (self.col_ptr[col], self.col_ptr[col + 1]);
-        let row = u32::try_from(row).ok()?;
-        self.row_idx[s..e].binary_search(&row).ok().map(|k| s + k)
-    }
-
-    /// y = A x for the symmetric matrix whose lower triangle is stored.
-    pub fn sym_matvec(&self, values: &[f64], x: &[f64]) -> Vec<f64> {
-        let mut y = vec![0.0; self.n];
-        for c in 0..self.n {
-            for k in self.col_ptr[c]..self.col_ptr[c + 1] {
-                let r = self.row_idx[k] as usize;
-                y[r] += values[k] * x[c];
-                if r != c {
-                    y[c] += values[k] * x[r];
-                }
-            }
-        }
-        y
     }
 }

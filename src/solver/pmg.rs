@@ -19,66 +19,8 @@ use rayon::prelude::*;
 
 use super::bsr::Operator;
 use super::pcg::{axpby_in_place, dot, BlockJacobi, SymmetricOperator, WithValues};
-use super::{SparseCholesky, SymmetricCsc};
+use super::{SparseCholesky, SparseRows, SymmetricCsc};
 use crate::{Error, Result};
-
-/// A rectangular sparse matrix by compressed rows (u32 column indices).
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct SparseRows {
-    pub n_rows: usize,
-    pub n_cols: usize,
-    pub row_ptr: Vec<usize>,
-    pub col: Vec<u32>,
-    pub val: Vec<f64>,
-}
-
-impl SparseRows {
-    /// Build from one list of (column, value) per row.
-    pub fn from_rows(n_cols: usize, rows: &[Vec<(u32, f64)>]) -> SparseRows {
-        let mut m = SparseRows { n_rows: rows.len(), n_cols, row_ptr: vec![0], ..Default::default() };
-        for row in rows {
-            for &(c, v) in row {
-                m.col.push(c);
-                m.val.push(v);
-            }
-            m.row_ptr.push(m.col.len());
-        }
-        m
-    }
-
-    /// y = M x.
-    pub fn matvec_into(&self, x: &[f64], y: &mut [f64]) {
-        y.par_chunks_mut(1024).enumerate().for_each(|(i, yc)| {
-            for (j, yr) in yc.iter_mut().enumerate() {
-                let r = i * 1024 + j;
-                *yr = (self.row_ptr[r]..self.row_ptr[r + 1]).map(|k| self.val[k] * x[self.col[k] as usize]).sum();
-            }
-        });
-    }
-
-    /// Mᵀ as compressed rows.
-    pub fn transpose(&self) -> SparseRows {
-        let mut ptr = vec![0usize; self.n_cols + 1];
-        for &c in &self.col {
-            ptr[c as usize + 1] += 1;
-        }
-        for i in 0..self.n_cols {
-            ptr[i + 1] += ptr[i];
-        }
-        let mut fill = ptr.clone();
-        let mut col = vec![0u32; self.col.len()];
-        let mut val = vec![0.0; self.col.len()];
-        for r in 0..self.n_rows {
-            for k in self.row_ptr[r]..self.row_ptr[r + 1] {
-                let c = self.col[k] as usize;
-                col[fill[c]] = r as u32;
-                val[fill[c]] = self.val[k];
-                fill[c] += 1;
-            }
-        }
-        SparseRows { n_rows: self.n_cols, n_cols: self.n_rows, row_ptr: ptr, col, val }
-    }
-}
 
 /// The lower-triangle values of A_c = Pᵀ A P on `coarse` (its pattern):
 /// W = A P row by row, then column J of A_c = Σ_r P[r, J] W[r, ·]. Products

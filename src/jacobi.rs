@@ -1,4 +1,6 @@
-//! Gauss–Jacobi and Gauss–Lobatto–Legendre rules on [−1, 1].
+//! Gauss–Jacobi and Gauss–Lobatto–Legendre rules on [−1, 1]: the 1D points
+//! that the reference nodes (edges at Gauss–Lobatto points) and the simplex
+//! quadrature rules (collapsed Gauss–Jacobi products) are built from.
 //!
 //! The nodes of the n-point Gauss–Jacobi rule for the weight
 //! w(x) = (1 − x)^α (1 + x)^β are the zeros of the Jacobi polynomial

@@ -1,0 +1,108 @@
+//! The library's modules form a chain: each uses only those before it (the
+//! order `src/lib.rs` draws). Test modules may use anything.
+
+use std::collections::BTreeSet;
+use std::path::Path;
+
+/// Bottom to top, as in the documentation of `src/lib.rs`.
+const CHAIN: [&str; 20] = [
+    "error",
+    "jacobi",
+    "linalg",
+    "sparse",
+    "reference",
+    "quadrature",
+    "mapping",
+    "mesh",
+    "geometry",
+    "material",
+    "quality",
+    "assembly",
+    "solver",
+    "optimize",
+    "curve",
+    "session",
+    "cases",
+    "study",
+    "io",
+    "ffi",
+];
+
+/// The top-level modules that the non-test code of `text` names through `crate::`.
+fn used_modules(text: &str) -> BTreeSet<String> {
+    let code = match text.find("#[cfg(test)]\nmod tests") {
+        Some(i) => &text[..i],
+        None => text,
+    };
+    let mut used = BTreeSet::new();
+    for line in code.lines() {
+        let line = line.split("//").next().unwrap_or("");
+        let mut rest = line;
+        while let Some(i) = rest.find("crate::") {
+            rest = &rest[i + "crate::".len()..];
+            let name: String = rest.chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect();
+            if name.is_empty() {
+                // `use crate::{a, b::c}`: every first segment in the braces.
+                let group = rest.trim_start_matches('{');
+                let end = group.find('}').unwrap_or(group.len());
+                for part in group[..end].split(',') {
+                    let first: String = part.trim().chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect();
+                    if !first.is_empty() {
+                        used.insert(first);
+                    }
+                }
+            } else {
+                used.insert(name);
+            }
+        }
+    }
+    used
+}
+
+fn rust_files(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            rust_files(&p, out);
+        } else if p.extension().is_some_and(|x| x == "rs") {
+            out.push(p);
+        }
+    }
+}
+
+#[test]
+fn every_module_uses_only_the_ones_below_it() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    rust_files(&src, &mut files);
+    let mut violations = Vec::new();
+    let mut seen = BTreeSet::new();
+    for f in files {
+        let rel = f.strip_prefix(&src).unwrap();
+        let top = rel.components().next().unwrap().as_os_str().to_string_lossy().trim_end_matches(".rs").to_string();
+        if top == "lib" || top == "bin" {
+            continue;
+        }
+        let level = CHAIN.iter().position(|&m| m == top).unwrap_or_else(|| panic!("{top} is not in the chain"));
+        seen.insert(top.clone());
+        for used in used_modules(&std::fs::read_to_string(&f).unwrap()) {
+            // Items re-exported at the crate root (`crate::Error`) belong to `error`.
+            let used = if used == "Error" || used == "Result" { "error".to_string() } else { used };
+            match CHAIN.iter().position(|&m| m == used) {
+                Some(u) if u > level => violations.push(format!("{} uses {used}", rel.display())),
+                Some(_) => {}
+                None => violations.push(format!("{} uses crate::{used}, which is not in the chain", rel.display())),
+            }
+        }
+    }
+    assert!(violations.is_empty(), "modules using ones above them:\n{}", violations.join("\n"));
+    assert_eq!(seen.len(), CHAIN.len(), "modules in the chain with no file: {CHAIN:?} vs {seen:?}");
+}
+
+#[test]
+fn the_scan_finds_plain_and_grouped_uses_but_not_comments_or_tests() {
+    let text = "use crate::mesh::Topology;\nuse crate::{curve, solver::Foo};\n/// see [`crate::ffi`]\n\
+                let x = crate::quality::f(); // crate::io\n#[cfg(test)]\nmod tests {\n    use crate::cases;\n}\n";
+    let found: Vec<String> = used_modules(text).into_iter().collect();
+    assert_eq!(found, ["curve", "mesh", "quality", "solver"]);
+}
