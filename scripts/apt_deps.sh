@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
 # System packages for the C/C++/Fortran tests (scripts/test_c.sh): compilers,
 # CMake, valgrind, the mesh generators the test fixtures use (TetGen, CGAL), and
-# gmsh's C++ API with OpenCASCADE for examples/occt (libgmsh-dev).
+# gmsh's C++ API with OpenCASCADE for examples/occt (libgmsh-dev). binutils
+# (g++ pulls it in; named because the CMake build itself runs ld -r, objcopy,
+# ar and readelf on libhocurve.a, and scripts/test_packaging.sh runs nm) and
+# pkg-config for the packaging checks.
 set -euo pipefail
-packages=(cmake g++ gfortran pkg-config valgrind patchelf
+packages=(cmake g++ gfortran pkg-config binutils valgrind
   tetgen libtet1.5-dev libcgal-dev libgmp-dev libmpfr-dev libboost-dev
   libgmsh-dev)
 missing=()

@@ -6,10 +6,13 @@
 # (LeakSanitizer included; the library's own allocations go through malloc, so
 # its leaks are caught too). Then builds and tests examples/occt (gmsh's C++ API
 # with OpenCASCADE; not under valgrind or the sanitizers, which would mostly
-# check OpenCASCADE).
+# check OpenCASCADE). Last, scripts/test_packaging.sh checks the package itself
+# (exported symbols of libhocurve.a, find_package version rules, a C++ consumer
+# through find_package, add_subdirectory and FetchContent, a relocated prefix
+# with CMake and pkg-config).
 #
 # Usage: scripts/test_c.sh   (HOCURVE_SKIP_MEMCHECK=1 skips valgrind, HOCURVE_SKIP_ASAN=1 the sanitizers,
-#                             HOCURVE_SKIP_OCCT=1 examples/occt)
+#                             HOCURVE_SKIP_OCCT=1 examples/occt, HOCURVE_SKIP_PACKAGING=1 the packaging checks)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 work=$(mktemp -d "${TMPDIR:-/tmp}/hocurve-c.XXXXXX")
@@ -50,5 +53,9 @@ if [ "${HOCURVE_SKIP_OCCT:-0}" != 1 ]; then
   cmake -S "$root/examples/occt" -B "$occt" -DCMAKE_PREFIX_PATH="$prefix"
   cmake --build "$occt" -j "$jobs"
   ctest --test-dir "$occt" -j "$jobs" --output-on-failure || status=1
+fi
+if [ "${HOCURVE_SKIP_PACKAGING:-0}" != 1 ]; then
+  # Installs its own prefix (cargo's work is reused), so that it can move it.
+  "$root/scripts/test_packaging.sh" || status=1
 fi
 exit $status
