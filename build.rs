@@ -78,10 +78,13 @@ const GKLIB: &[&str] = &[
 ];
 
 fn main() {
+    // The ABI version: the major, or while it is 0 "0.minor" (a 0.x minor
+    // release may break the ABI, so two of them must not share a SONAME).
     let major = env!("CARGO_PKG_VERSION_MAJOR");
+    let abi = if major == "0" { format!("0.{}", env!("CARGO_PKG_VERSION_MINOR")) } else { major.to_string() };
     let target_os = std::env::var("CARGO_CFG_TARGET_OS").unwrap_or_default();
     if target_os == "linux" {
-        println!("cargo:rustc-cdylib-link-arg=-Wl,-soname,libhocurve.so.{major}");
+        println!("cargo:rustc-cdylib-link-arg=-Wl,-soname,libhocurve.so.{abi}");
     }
     build_metis(&target_os);
     println!("cargo:rerun-if-changed=build.rs");

@@ -71,7 +71,12 @@ endfunction()
 
 # 3. libhocurve.so.X.Y.Z with its two links. build.rs gives it the SONAME.
 set(so_real "libhocurve.so.${VERSION}")
-set(so_major "libhocurve.so.${VERSION_MAJOR}")
+# The ABI version (build.rs): the major, or "0.minor" while the major is 0.
+if(VERSION_MAJOR EQUAL 0)
+  set(so_major "libhocurve.so.0.${VERSION_MINOR}")
+else()
+  set(so_major "libhocurve.so.${VERSION_MAJOR}")
+endif()
 run("${CMAKE_COMMAND}" -E copy_if_different "${release}/libhocurve.so" "${STAGE}/lib/${so_real}")
 execute_process(COMMAND "${READELF}" -d "${STAGE}/lib/${so_real}" OUTPUT_VARIABLE dyn RESULT_VARIABLE rc)
 if(NOT rc EQUAL 0 OR NOT dyn MATCHES "\\(SONAME\\)[^\n]*\\[${so_major}\\]")

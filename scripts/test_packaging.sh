@@ -42,6 +42,9 @@ run() {
 
 version=$(sed -n 's/^version *= *"\([^"]*\)".*/\1/p' "$root/Cargo.toml" | head -n 1)
 IFS=. read -r major minor patch <<<"$version"
+# The ABI version in the SONAME: the major, or 0.minor while the major is 0.
+abi=$major
+[ "$major" -eq 0 ] && abi="0.$minor"
 
 if [ $# -ge 1 ]; then
   prefix=$(cd "$1" && pwd)
@@ -63,10 +66,10 @@ for f in include/hocurve.h include/hocurve.hpp include/hocurve.f90 lib/libhocurv
   bin/hocurve share/doc/hocurve/metis/LICENSE-METIS; do
   [ -f "$prefix/$f" ] || { echo "missing $prefix/$f"; layout_ok=0; }
 done
-[ "$(readlink "$prefix/lib/libhocurve.so.$major")" = "libhocurve.so.$version" ] || { echo "bad libhocurve.so.$major link"; layout_ok=0; }
-[ "$(readlink "$prefix/lib/libhocurve.so")" = "libhocurve.so.$major" ] || { echo "bad libhocurve.so link"; layout_ok=0; }
+[ "$(readlink "$prefix/lib/libhocurve.so.$abi")" = "libhocurve.so.$version" ] || { echo "bad libhocurve.so.$abi link"; layout_ok=0; }
+[ "$(readlink "$prefix/lib/libhocurve.so")" = "libhocurve.so.$abi" ] || { echo "bad libhocurve.so link"; layout_ok=0; }
 soname=$(readelf -d "$prefix/lib/libhocurve.so.$version" 2>/dev/null | sed -n 's/.*(SONAME).*\[\(.*\)\]/\1/p')
-[ "$soname" = "libhocurve.so.$major" ] || { echo "SONAME '$soname'"; layout_ok=0; }
+[ "$soname" = "libhocurve.so.$abi" ] || { echo "SONAME '$soname'"; layout_ok=0; }
 [ "$("$prefix/bin/hocurve" --version 2>&1)" = "hocurve $version" ] || { echo "bin/hocurve --version fails"; layout_ok=0; }
 if [ $layout_ok = 1 ]; then pass "layout (libhocurve.so.$version, SONAME $soname, links, headers, CLI)"; else fail layout; fi
 
