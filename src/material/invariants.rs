@@ -186,6 +186,35 @@ pub(crate) fn invariant_stress_and_tangent<M: InvariantEnergy>(m: &M, f: &Mat3, 
     (sigma, c)
 }
 
+/// `impl Material` for an energy whose stress and tangent come from its
+/// invariants alone ([`invariant_stress`], [`invariant_stress_and_tangent`]).
+macro_rules! material_from_invariants {
+    ($model:ty, $name:literal) => {
+        impl $crate::material::Material for $model {
+            fn name(&self) -> &'static str {
+                $name
+            }
+            fn energy(&self, f: &$crate::linalg::Mat3, fibre: &[f64; 3]) -> f64 {
+                $crate::material::invariants::InvariantEnergy::psi(
+                    self,
+                    &$crate::material::invariants::Invariants::of(f, fibre),
+                )
+            }
+            fn stress(&self, f: &$crate::linalg::Mat3, fibre: &[f64; 3]) -> $crate::linalg::Mat3 {
+                $crate::material::invariants::invariant_stress(self, f, fibre)
+            }
+            fn stress_and_tangent(
+                &self,
+                f: &$crate::linalg::Mat3,
+                fibre: &[f64; 3],
+            ) -> ($crate::linalg::Mat3, $crate::material::Tangent) {
+                $crate::material::invariants::invariant_stress_and_tangent(self, f, fibre)
+            }
+        }
+    };
+}
+pub(crate) use material_from_invariants;
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -25,9 +25,7 @@
 //! α J^(−2/3) I1 + κ/2 (J − 1)². β ≥ 0 requires α ≤ μ_lin/2;
 //! [`NearlyIncompressibleMooneyRivlin::from_lame`] accepts any such α.
 
-use super::invariants::{invariant_stress, invariant_stress_and_tangent, InvariantEnergy, Invariants, I1, I2, JAC};
-use super::{Material, Tangent};
-use crate::linalg::Mat3;
+use super::invariants::{material_from_invariants, InvariantEnergy, Invariants, I1, I2, JAC};
 
 const SQRT3: f64 = 1.732_050_807_568_877_2;
 
@@ -79,26 +77,13 @@ impl InvariantEnergy for NearlyIncompressibleMooneyRivlin {
     }
 }
 
-impl Material for NearlyIncompressibleMooneyRivlin {
-    fn name(&self) -> &'static str {
-        "ni-mooney-rivlin"
-    }
-    fn energy(&self, f: &Mat3, fibre: &[f64; 3]) -> f64 {
-        self.psi(&Invariants::of(f, fibre))
-    }
-    fn stress(&self, f: &Mat3, fibre: &[f64; 3]) -> Mat3 {
-        invariant_stress(self, f, fibre)
-    }
-    fn stress_and_tangent(&self, f: &Mat3, fibre: &[f64; 3]) -> (Mat3, Tangent) {
-        invariant_stress_and_tangent(self, f, fibre)
-    }
-}
+material_from_invariants!(NearlyIncompressibleMooneyRivlin, "ni-mooney-rivlin");
 
 #[cfg(test)]
 mod tests {
     use super::super::tensor::{delta, isotropic_tangent, transpose};
     use super::super::testing::*;
-    use super::super::LinearElastic;
+    use super::super::{LinearElastic, Material};
     use super::*;
     use crate::linalg::{cofactor, det, matmul};
 

@@ -42,11 +42,8 @@
 //! ν → 0) and Ψ → −∞ as J → ∞. Together with the non-polyconvex I5 term
 //! (paper section 6) the model can lose ellipticity at large deformation.
 
-use super::invariants::{
-    invariant_stress, invariant_stress_and_tangent, InvariantEnergy, Invariants, I1, I2, I4, I5, JAC,
-};
-use super::{Material, Tangent, TiStiffness};
-use crate::linalg::Mat3;
+use super::invariants::{material_from_invariants, InvariantEnergy, Invariants, I1, I2, I4, I5, JAC};
+use super::TiStiffness;
 
 /// Constants of the Bonet–Burton transversely isotropic model.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -101,27 +98,14 @@ impl InvariantEnergy for TransverselyIsotropic {
     }
 }
 
-impl Material for TransverselyIsotropic {
-    fn name(&self) -> &'static str {
-        "transversely-isotropic"
-    }
-    fn energy(&self, f: &Mat3, fibre: &[f64; 3]) -> f64 {
-        self.psi(&Invariants::of(f, fibre))
-    }
-    fn stress(&self, f: &Mat3, fibre: &[f64; 3]) -> Mat3 {
-        invariant_stress(self, f, fibre)
-    }
-    fn stress_and_tangent(&self, f: &Mat3, fibre: &[f64; 3]) -> (Mat3, Tangent) {
-        invariant_stress_and_tangent(self, f, fibre)
-    }
-}
+material_from_invariants!(TransverselyIsotropic, "transversely-isotropic");
 
 #[cfg(test)]
 mod tests {
     use super::super::tensor::{delta, transpose};
     use super::super::testing::*;
     use super::super::ti_linear::tests::engineering_from_tangent;
-    use super::super::{make_material, MaterialModel, TiEngineeringConstants};
+    use super::super::{make_material, Material, MaterialModel, TiEngineeringConstants};
     use super::*;
     use crate::linalg::{det, matmul};
 
