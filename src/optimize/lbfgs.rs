@@ -37,64 +37,16 @@ pub fn minimise(x: &mut [f64], f: &mut Energy, first_step: f64, max_iterations: 
     let Some(mut value) = f(x, &mut g) else {
         return Minimised { iterations: 0, value: f64::INFINITY };
     };
-    let (mut s_hist, mut y_hist, mut rho): (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<f64>) = (vec![], vec![], vec![]);
+    let mut history = History::default();
     let mut d = vec![0.0; n];
     let mut trial = vec![0.0; n];
     let mut g_new = vec![0.0; n];
-    let mut alpha_buf = [0.0; MEMORY];
     let mut small = 0;
     for it in 0..max_iterations {
-        // Two-loop recursion: d = −H g.
-        d.iter_mut().zip(&g).for_each(|(d, g)| *d = -g);
-        let m = s_hist.len();
-        for k in (0..m).rev() {
-            let a = rho[k] * dot(&s_hist[k], &d);
-            alpha_buf[k] = a;
-            axpy(-a, &y_hist[k], &mut d);
-        }
-        if m > 0 {
-            let gamma = dot(&s_hist[m - 1], &y_hist[m - 1]) / dot(&y_hist[m - 1], &y_hist[m - 1]);
-            d.iter_mut().for_each(|v| *v *= gamma);
-        } else {
-            let dmax = d.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-            if dmax.is_nan() || dmax <= 0.0 {
-                return Minimised { iterations: it, value };
-            }
-            let scale = first_step / dmax;
-            d.iter_mut().for_each(|v| *v *= scale);
-        }
-        for k in 0..m {
-            let b = rho[k] * dot(&y_hist[k], &d);
-            axpy(alpha_buf[k] - b, &s_hist[k], &mut d);
-        }
-        let mut slope = dot(&g, &d);
-        if slope.is_nan() || slope >= 0.0 {
-            // Not a descent direction: restart from steepest descent.
-            s_hist.clear();
-            y_hist.clear();
-            rho.clear();
-            let gmax = g.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-            if gmax.is_nan() || gmax <= 0.0 {
-                return Minimised { iterations: it, value };
-            }
-            d.iter_mut().zip(&g).for_each(|(d, g)| *d = -g * first_step / gmax);
-            slope = dot(&g, &d);
-        }
-        // Backtracking line search.
-        let mut t = 1.0;
-        let mut accepted = None;
-        for _ in 0..MAX_BACKTRACKS {
-            trial.iter_mut().zip(x.iter()).zip(&d).for_each(|((y, x), d)| *y = x + t * d);
-            g_new.iter_mut().for_each(|v| *v = 0.0);
-            if let Some(v) = f(&trial, &mut g_new) {
-                if v <= value + ARMIJO * t * slope {
-                    accepted = Some(v);
-                    break;
-                }
-            }
-            t *= 0.5;
-        }
-        let Some(v_new) = accepted else {
+        let Some(slope) = history.descent(&g, &mut d, first_step) else {
+            return Minimised { iterations: it, value };
+        };
+        let Some((t, v_new)) = line_search(f, x, &d, value, slope, &mut trial, &mut g_new) else {
             return Minimised { iterations: it, value };
         };
         let s: Vec<f64> = d.iter().map(|d| t * d).collect();
@@ -104,16 +56,7 @@ pub fn minimise(x: &mut [f64], f: &mut Energy, first_step: f64, max_iterations: 
         std::mem::swap(&mut g, &mut g_new);
         let decrease = value - v_new;
         value = v_new;
-        if sy > 1e-300 {
-            if s_hist.len() == MEMORY {
-                s_hist.remove(0);
-                y_hist.remove(0);
-                rho.remove(0);
-            }
-            s_hist.push(s);
-            y_hist.push(y);
-            rho.push(1.0 / sy);
-        }
+        history.remember(s, y, sy);
         // Stop after three consecutive negligible decreases.
         if decrease <= rel_tol * value.abs() {
             small += 1;
@@ -127,10 +70,112 @@ pub fn minimise(x: &mut [f64], f: &mut Energy, first_step: f64, max_iterations: 
     Minimised { iterations: max_iterations, value }
 }
 
+/// The last [`MEMORY`] pairs (s, y) of steps and gradient changes, with ρ = 1 / sᵀy.
+#[derive(Default)]
+struct History {
+    s: Vec<Vec<f64>>,
+    y: Vec<Vec<f64>>,
+    rho: Vec<f64>,
+}
+
+impl History {
+    /// Write the search direction into `d` and return its slope gᵀd, or None if g vanishes.
+    fn descent(&mut self, g: &[f64], d: &mut [f64], first_step: f64) -> Option<f64> {
+        self.two_loop(g, d, first_step)?;
+        let mut slope = dot(g, d);
+        if slope.is_nan() || slope >= 0.0 {
+            // Not a descent direction: restart from steepest descent.
+            self.s.clear();
+            self.y.clear();
+            self.rho.clear();
+            let gmax = max_abs(g);
+            if gmax.is_nan() || gmax <= 0.0 {
+                return None;
+            }
+            d.iter_mut().zip(g).for_each(|(d, g)| *d = -g * first_step / gmax);
+            slope = dot(g, d);
+        }
+        Some(slope)
+    }
+
+    /// Two-loop recursion d = −H g; with no pairs, −g scaled to `first_step` (None if g vanishes).
+    fn two_loop(&self, g: &[f64], d: &mut [f64], first_step: f64) -> Option<()> {
+        let mut alpha_buf = [0.0; MEMORY];
+        d.iter_mut().zip(g).for_each(|(d, g)| *d = -g);
+        let m = self.s.len();
+        for k in (0..m).rev() {
+            let a = self.rho[k] * dot(&self.s[k], d);
+            alpha_buf[k] = a;
+            axpy(-a, &self.y[k], d);
+        }
+        if m > 0 {
+            let gamma = dot(&self.s[m - 1], &self.y[m - 1]) / dot(&self.y[m - 1], &self.y[m - 1]);
+            d.iter_mut().for_each(|v| *v *= gamma);
+        } else {
+            let dmax = max_abs(d);
+            if dmax.is_nan() || dmax <= 0.0 {
+                return None;
+            }
+            let scale = first_step / dmax;
+            d.iter_mut().for_each(|v| *v *= scale);
+        }
+        for k in 0..m {
+            let b = self.rho[k] * dot(&self.y[k], d);
+            axpy(alpha_buf[k] - b, &self.s[k], d);
+        }
+        Some(())
+    }
+
+    /// Keep the pair (s, y) if its curvature sᵀy = `sy` is positive, dropping the oldest beyond [`MEMORY`].
+    fn remember(&mut self, s: Vec<f64>, y: Vec<f64>, sy: f64) {
+        if sy > 1e-300 {
+            if self.s.len() == MEMORY {
+                self.s.remove(0);
+                self.y.remove(0);
+                self.rho.remove(0);
+            }
+            self.s.push(s);
+            self.y.push(y);
+            self.rho.push(1.0 / sy);
+        }
+    }
+}
+
+/// Backtracking line search along `d`: step t and energy at `trial` = x + t d (gradient in `g_new`), or None.
+fn line_search(
+    f: &mut Energy,
+    x: &[f64],
+    d: &[f64],
+    value: f64,
+    slope: f64,
+    trial: &mut [f64],
+    g_new: &mut [f64],
+) -> Option<(f64, f64)> {
+    let mut t = 1.0;
+    for _ in 0..MAX_BACKTRACKS {
+        trial.iter_mut().zip(x.iter()).zip(d).for_each(|((y, x), d)| *y = x + t * d);
+        g_new.iter_mut().for_each(|v| *v = 0.0);
+        if let Some(v) = f(trial, g_new) {
+            if v <= value + ARMIJO * t * slope {
+                return Some((t, v));
+            }
+        }
+        t *= 0.5;
+    }
+    None
+}
+
+/// The largest absolute value in `v` (0 for none).
+fn max_abs(v: &[f64]) -> f64 {
+    v.iter().fold(0.0f64, |a, v| a.max(v.abs()))
+}
+
+/// The dot product aᵀb.
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(a, b)| a * b).sum()
 }
 
+/// y += a x.
 fn axpy(a: f64, x: &[f64], y: &mut [f64]) {
     y.iter_mut().zip(x).for_each(|(y, x)| *y += a * x);
 }

@@ -154,6 +154,7 @@ struct CellState {
 }
 
 impl CellState {
+    /// Whether the cell is not certified valid.
     fn invalid(&self) -> bool {
         self.cert.verdict != Verdict::Valid
     }
@@ -182,151 +183,284 @@ pub fn optimize(
     certified: &mut Vec<CertifiedJacobian>,
 ) -> (OptimizeReport, Vec<usize>) {
     let t0 = Instant::now();
-    let invalid_count = |cert: &[CertifiedJacobian]| cert.iter().filter(|c| c.verdict != Verdict::Valid).count();
+    let mut state = MeshState { mesh, straight, cell_quality, certified };
     let mut report = OptimizeReport {
-        invalid_before: invalid_count(certified),
-        min_q3_before: min_q3(cell_quality),
+        invalid_before: invalid_count(state.certified),
+        min_q3_before: min_q3(state.cell_quality),
         ..Default::default()
     };
-    let mut parent: Vec<usize> = (0..mesh.n_cells()).collect();
-    let selected = |quality: bool, q: &[ElementQuality], cert: &[CertifiedJacobian]| -> Vec<usize> {
-        (0..cert.len())
-            .filter(|&c| cert[c].verdict != Verdict::Valid || (quality && q[c].q3 < opts.threshold))
-            .collect()
-    };
-    report.target_cells = selected(true, cell_quality, certified).len();
+    let mut parent: Vec<usize> = (0..state.mesh.n_cells()).collect();
+    report.target_cells = state.selected(true, opts.threshold).len();
     if opts.enabled {
         let ctx = PatchContext::new(basis, sampling);
         // Projector calls are serialised: a host's callback is called from
         // one thread at a time.
         let projector = projector.filter(|_| opts.slide).map(Mutex::new);
-        let mut touched = vec![false; mesh.n_cells()];
-        let mut moved = vec![false; mesh.n_nodes()];
-        let mut round = |mesh: &mut HighOrderMesh,
-                         straight: &[f64],
-                         seeds: &[usize],
-                         pass: Pass,
-                         cell_quality: &mut [ElementQuality],
-                         certified: &mut [CertifiedJacobian],
-                         report: &mut OptimizeReport| {
-            let adj = NodeCells::new(mesh);
-            let patches = build_patches(mesh, &adj, seeds, pass.layers);
-            report.rounds += 1;
-            report.patches += patches.len();
-            touched.resize(mesh.n_cells(), false);
-            moved.resize(mesh.n_nodes(), false);
-            let results: Vec<Option<Vec<f64>>> = {
-                let (coords, constraint) = (&mesh.coords, &mesh.constraint);
-                let entity = |n: usize| match constraint[n] {
-                    NodeConstraint::OnEntity { dim, tag } => Some((dim, tag)),
-                    _ => None,
-                };
-                let (cq, cert) = (&*cell_quality, &*certified);
-                patches
-                    .par_iter()
-                    .map(|p| {
-                        let cells = (&mesh.cells[..], mesh.nodes_per_cell());
-                        ctx.optimize_patch(coords, cells, straight, p, pass, cq, cert, projector.as_ref(), &entity)
-                    })
-                    .collect()
-            };
-            let dim = ctx.dim;
-            for (p, result) in patches.iter().zip(results) {
-                let Some(x) = result else { continue };
-                for (i, &n) in p.free.iter().chain(&p.sliding).enumerate() {
-                    if mesh.coords[n * dim..(n + 1) * dim] != x[i * dim..(i + 1) * dim] {
-                        moved[n] = true;
-                    }
-                    mesh.coords[n * dim..(n + 1) * dim].copy_from_slice(&x[i * dim..(i + 1) * dim]);
-                }
-                for &c in &p.cells {
-                    let s = ctx.cell_state(&mesh.coords, mesh.cell(c), straight);
-                    cell_quality[c] = s.q;
-                    certified[c] = s.cert;
-                    touched[c] = true;
-                }
-            }
-        };
-        // First rounds: invalid and low-quality cells, the cheap sample rule first.
-        for (k, &layers) in FIRST_LAYERS.iter().enumerate() {
-            let seeds = selected(true, cell_quality, certified);
-            if seeds.is_empty() {
-                break;
-            }
-            let rule = if k == 0 { &ctx.coarse } else { &ctx.fine };
-            let pass = Pass { layers, rule, slide_below: opts.threshold };
-            round(mesh, straight, &seeds, pass, cell_quality, certified, &mut report);
+        let mut stage = Stage::new(&ctx, projector.as_ref(), opts.threshold, &state, &mut report);
+        if let Some(split) = stage.run(&mut state, basis, opts.split) {
+            parent = split;
         }
-        // The cells still invalid: split, then later rounds on the invalid ones.
-        let invalid = selected(false, cell_quality, certified);
-        if opts.split && !invalid.is_empty() {
-            parent = split::split_at_centroids(mesh, straight, basis, &invalid);
-            report.cells_split = invalid.len();
-            for c in invalid.iter().copied().chain(cell_quality.len()..mesh.n_cells()) {
-                let s = ctx.cell_state(&mesh.coords, mesh.cell(c), straight);
-                if c < cell_quality.len() {
-                    (cell_quality[c], certified[c]) = (s.q, s.cert);
-                } else {
-                    cell_quality.push(s.q);
-                    certified.push(s.cert);
-                }
-            }
-        }
-        let mut futile = 0;
-        for &layers in &LATER_LAYERS {
-            let seeds = selected(false, cell_quality, certified);
-            if seeds.is_empty() || futile == FUTILE_ROUNDS {
-                break;
-            }
-            let pass = Pass { layers, rule: &ctx.fine, slide_below: opts.threshold };
-            round(mesh, straight, &seeds, pass, cell_quality, certified, &mut report);
-            futile = if invalid_count(certified) < seeds.len() { 0 } else { futile + 1 };
-        }
-        // The pieces of split cells had no quality round: one, on those below the threshold.
-        if report.cells_split > 0 {
-            // A split cell's first piece keeps its index; the others point to it.
-            let mut piece = vec![false; mesh.n_cells()];
-            for (c, &q) in parent.iter().enumerate().filter(|(c, q)| c != *q) {
-                (piece[c], piece[q]) = (true, true);
-            }
-            let seeds: Vec<usize> =
-                (0..mesh.n_cells()).filter(|&c| piece[c] && cell_quality[c].q3 < opts.threshold).collect();
-            if !seeds.is_empty() {
-                let pass = Pass { layers: FIRST_LAYERS[0], rule: &ctx.fine, slide_below: opts.threshold };
-                round(mesh, straight, &seeds, pass, cell_quality, certified, &mut report);
-            }
-        }
-        // Polish: the cells near the smallest Q3, in small patches, while that
-        // rises (each patch is kept only if its own smallest Q3 rose). It
-        // lifts the floor that the energy, an average, does not aim at.
-        for _ in 0..POLISH_ROUNDS {
-            if invalid_count(certified) > 0 {
-                break;
-            }
-            let floor = min_q3(cell_quality);
-            let mut seeds: Vec<usize> =
-                (0..cell_quality.len()).filter(|&c| cell_quality[c].q3 < POLISH_FACTOR * floor).collect();
-            seeds.sort_by(|&a, &b| cell_quality[a].q3.total_cmp(&cell_quality[b].q3).then(a.cmp(&b)));
-            seeds.truncate(POLISH_SEEDS);
-            seeds.sort_unstable();
-            let pass = Pass { layers: FIRST_LAYERS[0], rule: &ctx.fine, slide_below: opts.threshold };
-            round(mesh, straight, &seeds, pass, cell_quality, certified, &mut report);
-            let now = min_q3(cell_quality);
-            if now < floor * (1.0 + POLISH_GAIN) {
-                break;
-            }
-        }
-        report.ran = report.rounds > 0;
-        report.cells_touched = touched.iter().filter(|&&t| t).count();
-        report.nodes_moved = moved.iter().filter(|&&m| m).count();
     }
-    report.invalid_after = invalid_count(certified);
-    report.min_q3_after = min_q3(cell_quality);
+    report.invalid_after = invalid_count(state.certified);
+    report.min_q3_after = min_q3(state.cell_quality);
     report.seconds = t0.elapsed().as_secs_f64();
     (report, parent)
 }
 
+/// The mesh and the figures of its cells, which the stage changes together.
+struct MeshState<'m> {
+    mesh: &'m mut HighOrderMesh,
+    /// The straight-sided positions of the mesh's nodes.
+    straight: &'m mut Vec<f64>,
+    cell_quality: &'m mut Vec<ElementQuality>,
+    certified: &'m mut Vec<CertifiedJacobian>,
+}
+
+impl MeshState<'_> {
+    /// The cells certified invalid, and with `quality` those whose Q3 is below `threshold`.
+    fn selected(&self, quality: bool, threshold: f64) -> Vec<usize> {
+        let (q, cert) = (&self.cell_quality, &self.certified);
+        (0..cert.len()).filter(|&c| cert[c].verdict != Verdict::Valid || (quality && q[c].q3 < threshold)).collect()
+    }
+
+    /// The figures of cell `c` as its nodes are now.
+    fn measure(&self, ctx: &PatchContext, c: usize) -> CellState {
+        ctx.cell_state(&self.mesh.coords, self.mesh.cell(c), self.straight)
+    }
+
+    /// The mesh as the patches of a round read it.
+    fn view(&self) -> MeshView<'_> {
+        MeshView {
+            coords: &self.mesh.coords,
+            cells: &self.mesh.cells,
+            npc: self.mesh.nodes_per_cell(),
+            constraint: &self.mesh.constraint,
+            straight: self.straight,
+            cell_quality: self.cell_quality,
+            certified: self.certified,
+        }
+    }
+}
+
+/// The rounds of one call of [`optimize`]: what they share, and what they changed.
+struct Stage<'s, 'p> {
+    ctx: &'s PatchContext<'s>,
+    projector: Option<&'s Mutex<&'p dyn Projector>>,
+    threshold: f64,
+    /// The cells of the patches kept so far.
+    touched: Vec<bool>,
+    /// The nodes those patches moved.
+    moved: Vec<bool>,
+    report: &'s mut OptimizeReport,
+}
+
+impl<'s, 'p> Stage<'s, 'p> {
+    /// A stage on `state` that has changed nothing yet.
+    fn new(
+        ctx: &'s PatchContext<'s>,
+        projector: Option<&'s Mutex<&'p dyn Projector>>,
+        threshold: f64,
+        state: &MeshState,
+        report: &'s mut OptimizeReport,
+    ) -> Self {
+        let touched = vec![false; state.mesh.n_cells()];
+        let moved = vec![false; state.mesh.n_nodes()];
+        Stage { ctx, projector, threshold, touched, moved, report }
+    }
+
+    /// Every phase in turn, then the report's totals; the cells' parents if some were split.
+    fn run(&mut self, state: &mut MeshState, basis: &LagrangeBasis, split: bool) -> Option<Vec<usize>> {
+        self.first_rounds(state);
+        let parent = if split { self.split_invalid(state, basis) } else { None };
+        self.later_rounds(state);
+        if let Some(parent) = &parent {
+            self.pieces_round(state, parent);
+        }
+        self.polish(state);
+        self.report.ran = self.report.rounds > 0;
+        self.report.cells_touched = self.touched.iter().filter(|&&t| t).count();
+        self.report.nodes_moved = self.moved.iter().filter(|&&m| m).count();
+        parent
+    }
+
+    /// First rounds: invalid and low-quality cells, the cheap sample rule first.
+    fn first_rounds(&mut self, state: &mut MeshState) {
+        let ctx = self.ctx;
+        for (k, &layers) in FIRST_LAYERS.iter().enumerate() {
+            let seeds = state.selected(true, self.threshold);
+            if seeds.is_empty() {
+                break;
+            }
+            let rule = if k == 0 { &ctx.coarse } else { &ctx.fine };
+            self.run_round(state, &seeds, self.pass(layers, rule));
+        }
+    }
+
+    /// Split the cells still invalid and measure the pieces; each cell's parent, or None if none was invalid.
+    fn split_invalid(&mut self, state: &mut MeshState, basis: &LagrangeBasis) -> Option<Vec<usize>> {
+        let invalid = state.selected(false, self.threshold);
+        if invalid.is_empty() {
+            return None;
+        }
+        let parent = split::split_at_centroids(state.mesh, state.straight, basis, &invalid);
+        self.report.cells_split = invalid.len();
+        for c in invalid.iter().copied().chain(state.cell_quality.len()..state.mesh.n_cells()) {
+            let s = state.measure(self.ctx, c);
+            if c < state.cell_quality.len() {
+                (state.cell_quality[c], state.certified[c]) = (s.q, s.cert);
+            } else {
+                state.cell_quality.push(s.q);
+                state.certified.push(s.cert);
+            }
+        }
+        Some(parent)
+    }
+
+    /// Later rounds: growing patches around the invalid cells until [`FUTILE_ROUNDS`] in a row fix nothing.
+    fn later_rounds(&mut self, state: &mut MeshState) {
+        let ctx = self.ctx;
+        let mut futile = 0;
+        for &layers in &LATER_LAYERS {
+            let seeds = state.selected(false, self.threshold);
+            if seeds.is_empty() || futile == FUTILE_ROUNDS {
+                break;
+            }
+            self.run_round(state, &seeds, self.pass(layers, &ctx.fine));
+            futile = if invalid_count(state.certified) < seeds.len() { 0 } else { futile + 1 };
+        }
+    }
+
+    /// The pieces of split cells had no quality round: one, on those below the threshold.
+    fn pieces_round(&mut self, state: &mut MeshState, parent: &[usize]) {
+        let ctx = self.ctx;
+        // A split cell's first piece keeps its index; the others point to it.
+        let mut piece = vec![false; state.mesh.n_cells()];
+        for (c, &q) in parent.iter().enumerate().filter(|(c, q)| c != *q) {
+            (piece[c], piece[q]) = (true, true);
+        }
+        let seeds: Vec<usize> =
+            (0..state.mesh.n_cells()).filter(|&c| piece[c] && state.cell_quality[c].q3 < self.threshold).collect();
+        if !seeds.is_empty() {
+            self.run_round(state, &seeds, self.pass(FIRST_LAYERS[0], &ctx.fine));
+        }
+    }
+
+    /// Polish: small patches around the cells near the smallest Q3, while that rises.
+    fn polish(&mut self, state: &mut MeshState) {
+        // Each patch is kept only if its own smallest Q3 rose. It lifts the
+        // floor that the energy, an average, does not aim at.
+        let ctx = self.ctx;
+        for _ in 0..POLISH_ROUNDS {
+            if invalid_count(state.certified) > 0 {
+                break;
+            }
+            let floor = min_q3(state.cell_quality);
+            let seeds = polish_seeds(state.cell_quality, floor);
+            self.run_round(state, &seeds, self.pass(FIRST_LAYERS[0], &ctx.fine));
+            let now = min_q3(state.cell_quality);
+            if now < floor * (1.0 + POLISH_GAIN) {
+                break;
+            }
+        }
+    }
+
+    /// A pass of `layers` layers sampled by `rule`, sliding below the threshold.
+    fn pass<'r>(&self, layers: usize, rule: &'r SampleRule) -> Pass<'r> {
+        Pass { layers, rule, slide_below: self.threshold }
+    }
+
+    /// One round: the patches around `seeds` optimised in parallel, the improved ones kept.
+    fn run_round(&mut self, state: &mut MeshState, seeds: &[usize], pass: Pass) {
+        let adj = NodeCells::new(state.mesh);
+        let patches = build_patches(state.mesh, &adj, seeds, pass.layers);
+        self.report.rounds += 1;
+        self.report.patches += patches.len();
+        self.touched.resize(state.mesh.n_cells(), false);
+        self.moved.resize(state.mesh.n_nodes(), false);
+        let results = self.optimize_patches(state, &patches, pass);
+        self.keep(state, &patches, results);
+    }
+
+    /// The new positions of each patch's moving nodes, or None where they did not improve it.
+    fn optimize_patches(&self, state: &MeshState, patches: &[Patch], pass: Pass) -> Vec<Option<Vec<f64>>> {
+        let (ctx, projector) = (self.ctx, self.projector);
+        let view = state.view();
+        patches.par_iter().map(|p| ctx.optimize_patch(&view, p, pass, projector)).collect()
+    }
+
+    /// Write the improved patches' positions into the mesh and measure their cells again.
+    fn keep(&mut self, state: &mut MeshState, patches: &[Patch], results: Vec<Option<Vec<f64>>>) {
+        let dim = self.ctx.dim;
+        for (p, result) in patches.iter().zip(results) {
+            let Some(x) = result else { continue };
+            for (i, &n) in p.free.iter().chain(&p.sliding).enumerate() {
+                if state.mesh.coords[n * dim..(n + 1) * dim] != x[i * dim..(i + 1) * dim] {
+                    self.moved[n] = true;
+                }
+                state.mesh.coords[n * dim..(n + 1) * dim].copy_from_slice(&x[i * dim..(i + 1) * dim]);
+            }
+            for &c in &p.cells {
+                let s = state.measure(self.ctx, c);
+                state.cell_quality[c] = s.q;
+                state.certified[c] = s.cert;
+                self.touched[c] = true;
+            }
+        }
+    }
+}
+
+/// The seeds of a polish round: of the cells with Q3 below [`POLISH_FACTOR`] × `floor`, the worst, sorted.
+fn polish_seeds(cell_quality: &[ElementQuality], floor: f64) -> Vec<usize> {
+    let mut seeds: Vec<usize> =
+        (0..cell_quality.len()).filter(|&c| cell_quality[c].q3 < POLISH_FACTOR * floor).collect();
+    seeds.sort_by(|&a, &b| cell_quality[a].q3.total_cmp(&cell_quality[b].q3).then(a.cmp(&b)));
+    seeds.truncate(POLISH_SEEDS);
+    seeds.sort_unstable();
+    seeds
+}
+
+/// The cells certified invalid (or undecided).
+fn invalid_count(cert: &[CertifiedJacobian]) -> usize {
+    cert.iter().filter(|c| c.verdict != Verdict::Valid).count()
+}
+
+/// The mesh as the patches of a round read it (none writes it while they run).
+struct MeshView<'v> {
+    coords: &'v [f64],
+    /// Every cell's nodes, `npc` per cell.
+    cells: &'v [usize],
+    npc: usize,
+    constraint: &'v [NodeConstraint],
+    straight: &'v [f64],
+    cell_quality: &'v [ElementQuality],
+    certified: &'v [CertifiedJacobian],
+}
+
+impl MeshView<'_> {
+    /// The nodes of cell `c`.
+    fn cell(&self, c: usize) -> &[usize] {
+        &self.cells[c * self.npc..(c + 1) * self.npc]
+    }
+
+    /// The entity (dimension, tag) that node `n` lies on, if it may slide.
+    fn entity(&self, n: usize) -> Option<(usize, i32)> {
+        match self.constraint[n] {
+            NodeConstraint::OnEntity { dim, tag } => Some((dim, tag)),
+            _ => None,
+        }
+    }
+
+    /// (invalid cells, min Q3) of `cells` on entry to the round.
+    fn score(&self, cells: &[usize]) -> (usize, f64) {
+        (
+            cells.iter().filter(|&&c| self.certified[c].verdict != Verdict::Valid).count(),
+            cells.iter().map(|&c| self.cell_quality[c].q3).fold(f64::INFINITY, f64::min),
+        )
+    }
+}
+
 impl<'a> PatchContext<'a> {
+    /// The context of the order of `basis`.
     fn new(basis: &LagrangeBasis, sampling: &'a ElementCache) -> PatchContext<'a> {
         let p = basis.order();
         PatchContext {
@@ -338,10 +472,16 @@ impl<'a> PatchContext<'a> {
         }
     }
 
+    /// The figures of the cell with nodes `cell` at `coords`.
     fn cell_state(&self, coords: &[f64], cell: &[usize], straight: &[f64]) -> CellState {
         let dim = self.dim;
         let (xe, xs) = (gather(coords, cell, dim), gather(straight, cell, dim));
-        CellState { q: quality::element_quality(self.sampling, &xe, &xs, None), cert: self.bernstein.certify(&xe) }
+        self.state(&xe, &xs)
+    }
+
+    /// The figures of the element with node coordinates `xe` (straight: `xs`).
+    fn state(&self, xe: &[f64], xs: &[f64]) -> CellState {
+        CellState { q: quality::element_quality(self.sampling, xe, xs, None), cert: self.bernstein.certify(xe) }
     }
 
     /// New positions of the patch's moving nodes (`patch.free`, then
@@ -352,41 +492,72 @@ impl<'a> PatchContext<'a> {
     /// a projector is given, the interior and boundary nodes together, the
     /// boundary ones moving in their entity's tangent space (a frame found
     /// through the projector) and projected back onto it after each pass.
-    #[allow(clippy::too_many_arguments)]
     fn optimize_patch(
         &self,
-        coords: &[f64],
-        (cells, npc): (&[usize], usize),
-        straight: &[f64],
+        view: &MeshView,
         patch: &Patch,
         Pass { rule, slide_below, .. }: Pass,
-        cell_quality: &[ElementQuality],
-        certified: &[CertifiedJacobian],
         projector: Option<&Mutex<&dyn Projector>>,
-        entity: &dyn Fn(usize) -> Option<(usize, i32)>,
     ) -> Option<Vec<f64>> {
         if patch.free.is_empty() && patch.sliding.is_empty() {
             return None;
         }
         let dim = self.dim;
-        let cell = |c: usize| &cells[c * npc..(c + 1) * npc];
+        let work = PatchWork::new(self, view, patch, rule)?;
+        let node = |n: usize| point(&view.coords[n * dim..(n + 1) * dim]);
+        let mut pos: Vec<[f64; 3]> = patch.free.iter().chain(&patch.sliding).map(|&n| node(n)).collect();
+        // Interior nodes alone (the sliding ones held where they are).
+        let interior: Vec<Unknown> = (0..pos.len())
+            .map(|j| if j < patch.free.len() { Unknown::free(pos[j], dim) } else { Unknown::fixed(pos[j]) })
+            .collect();
+        work.problem(None).minimise(&mut pos, interior, 0.05 * work.h);
+        let mut best = (work.score(&pos), pos.clone());
+        if let (Some(projector), true) =
+            (projector, (best.0 .0 > 0 || best.0 .1 < slide_below) && !patch.sliding.is_empty())
+        {
+            work.slide(projector, &mut pos, &mut best);
+        }
+        let before = view.score(&patch.cells);
+        better(best.0, before).then(|| best.1.iter().flat_map(|x| x[..dim].to_vec()).collect())
+    }
+}
+
+/// One patch being optimised: its cells sampled on their straight elements,
+/// where its moving nodes sit in them, and its length scales.
+struct PatchWork<'w> {
+    ctx: &'w PatchContext<'w>,
+    view: &'w MeshView<'w>,
+    patch: &'w Patch,
+    rule: &'w SampleRule,
+    elements: Vec<ElementSamples>,
+    /// Per cell-local node of the patch cells: index among the moving nodes, or usize::MAX.
+    local: Vec<usize>,
+    /// Of each moving node, the smallest mean edge of its cells.
+    scale: Vec<f64>,
+    /// The median cell's mean edge.
+    h: f64,
+}
+
+impl<'w> PatchWork<'w> {
+    /// The patch sampled by `rule`; None if a straight element cannot be.
+    fn new(ctx: &'w PatchContext<'w>, view: &'w MeshView<'w>, patch: &'w Patch, rule: &'w SampleRule) -> Option<Self> {
+        let (dim, npc) = (ctx.dim, view.npc);
         let mut elements: Vec<ElementSamples> = Vec::with_capacity(patch.cells.len());
         let mut sizes = Vec::with_capacity(patch.cells.len());
         for &c in &patch.cells {
-            let xs = gather(straight, cell(c), dim);
+            let xs = gather(view.straight, view.cell(c), dim);
             elements.push(rule.element(&xs)?);
             sizes.push(mean_edge(dim, &xs));
         }
-        let moving: Vec<usize> = patch.free.iter().chain(&patch.sliding).copied().collect();
         let local: Vec<usize> = patch
             .cells
             .iter()
-            .flat_map(|&c| cell(c).iter().map(|n| position_in(&patch.free, &patch.sliding, *n)))
+            .flat_map(|&c| view.cell(c).iter().map(|n| position_in(&patch.free, &patch.sliding, *n)))
             .collect();
         // Length scales: of each moving node, the smallest mean edge of its
         // cells (edges, not volume: a sliver's edges are as long as its
         // neighbours'); of the patch, the median cell's.
-        let mut scale = vec![f64::INFINITY; moving.len()];
+        let mut scale = vec![f64::INFINITY; patch.free.len() + patch.sliding.len()];
         for (k, &size) in sizes.iter().enumerate() {
             for &j in &local[k * npc..(k + 1) * npc] {
                 if j != usize::MAX {
@@ -396,71 +567,74 @@ impl<'a> PatchContext<'a> {
         }
         sizes.sort_by(f64::total_cmp);
         let h = sizes[sizes.len() / 2];
-        let node = |n: usize| point(&coords[n * dim..(n + 1) * dim]);
-        let mut pos: Vec<[f64; 3]> = moving.iter().map(|&n| node(n)).collect();
-        let patch_score = |pos: &[[f64; 3]]| {
-            let (mut invalid, mut q3) = (0, f64::INFINITY);
-            let mut xe = vec![0.0; npc * dim];
-            for (k, &c) in patch.cells.iter().enumerate() {
-                gather_moved(cell(c), &local[k * npc..(k + 1) * npc], coords, pos, dim, &mut xe);
-                let xs = gather(straight, cell(c), dim);
-                let s = CellState {
-                    q: quality::element_quality(self.sampling, &xe, &xs, None),
-                    cert: self.bernstein.certify(&xe),
-                };
-                invalid += s.invalid() as usize;
-                q3 = q3.min(s.q.q3);
-            }
-            (invalid, q3)
-        };
-        let problem = PatchProblem {
-            dim,
-            npc,
-            rule,
-            elements: &elements,
-            local: &local,
-            coords,
-            cells: patch.cells.as_slice(),
-            all_cells: cells,
-            projector: None,
-        };
-        // Interior nodes alone (the sliding ones held where they are).
-        let interior: Vec<Unknown> = (0..moving.len())
-            .map(|j| if j < patch.free.len() { Unknown::free(pos[j], dim) } else { Unknown::fixed(pos[j]) })
-            .collect();
-        problem.minimise(&mut pos, interior, 0.05 * h);
-        let mut best = (patch_score(&pos), pos.clone());
-        if let (Some(projector), true) =
-            (projector, (best.0 .0 > 0 || best.0 .1 < slide_below) && !patch.sliding.is_empty())
-        {
-            for _ in 0..SLIDING_PASSES {
-                let mut unknowns: Vec<Unknown> = (0..patch.free.len()).map(|j| Unknown::free(pos[j], dim)).collect();
-                for (j, &n) in patch.sliding.iter().enumerate() {
-                    let at = pos[patch.free.len() + j];
-                    let s = scale[patch.free.len() + j];
-                    let frame =
-                        entity(n).and_then(|(edim, tag)| tangent_frame(projector, edim, tag, at, 1e-3 * s, dim));
-                    unknowns.push(match frame {
-                        Some(t) => Unknown { base: at, tangents: t, limit: SLIDE_LIMIT * s, on: entity(n) },
-                        None => Unknown::fixed(at),
-                    });
-                }
-                PatchProblem { projector: Some(projector), ..problem }.minimise(&mut pos, unknowns, 0.05 * h);
-                let score = patch_score(&pos);
-                if better(score, best.0) {
-                    best = (score, pos.clone());
-                }
-                if best.0 .0 == 0 {
-                    break;
-                }
-                pos.clone_from(&best.1);
-            }
+        Some(PatchWork { ctx, view, patch, rule, elements, local, scale, h })
+    }
+
+    /// The patch's energy, its sliding nodes projected through `projector` if given.
+    fn problem<'a, 'p>(&'a self, projector: Option<&'a Mutex<&'p dyn Projector>>) -> PatchProblem<'a, 'p> {
+        PatchProblem {
+            dim: self.ctx.dim,
+            npc: self.view.npc,
+            rule: self.rule,
+            elements: &self.elements,
+            local: &self.local,
+            coords: self.view.coords,
+            cells: self.patch.cells.as_slice(),
+            all_cells: self.view.cells,
+            projector,
         }
-        let before = (
-            patch.cells.iter().filter(|&&c| certified[c].verdict != Verdict::Valid).count(),
-            patch.cells.iter().map(|&c| cell_quality[c].q3).fold(f64::INFINITY, f64::min),
-        );
-        better(best.0, before).then(|| best.1.iter().flat_map(|x| x[..dim].to_vec()).collect())
+    }
+
+    /// (invalid cells, min Q3) of the patch with its moving nodes at `pos`.
+    fn score(&self, pos: &[[f64; 3]]) -> (usize, f64) {
+        let (dim, npc, view) = (self.ctx.dim, self.view.npc, self.view);
+        let (mut invalid, mut q3) = (0, f64::INFINITY);
+        let mut xe = vec![0.0; npc * dim];
+        for (k, &c) in self.patch.cells.iter().enumerate() {
+            gather_moved(view.cell(c), &self.local[k * npc..(k + 1) * npc], view.coords, pos, dim, &mut xe);
+            let xs = gather(view.straight, view.cell(c), dim);
+            let s = self.ctx.state(&xe, &xs);
+            invalid += s.invalid() as usize;
+            q3 = q3.min(s.q.q3);
+        }
+        (invalid, q3)
+    }
+
+    /// The sliding phase: passes on all moving nodes from the best positions yet (`best`: score, positions).
+    fn slide(
+        &self,
+        projector: &Mutex<&dyn Projector>,
+        pos: &mut Vec<[f64; 3]>,
+        best: &mut ((usize, f64), Vec<[f64; 3]>),
+    ) {
+        for _ in 0..SLIDING_PASSES {
+            let unknowns = self.sliding_unknowns(projector, pos);
+            self.problem(Some(projector)).minimise(pos, unknowns, 0.05 * self.h);
+            let score = self.score(pos);
+            if better(score, best.0) {
+                *best = (score, pos.clone());
+            }
+            if best.0 .0 == 0 {
+                break;
+            }
+            pos.clone_from(&best.1);
+        }
+    }
+
+    /// The unknowns of a sliding pass from `pos`: free nodes, and sliding ones in their entity's tangent space.
+    fn sliding_unknowns(&self, projector: &Mutex<&dyn Projector>, pos: &[[f64; 3]]) -> Vec<Unknown> {
+        let (dim, patch, view) = (self.ctx.dim, self.patch, self.view);
+        let mut unknowns: Vec<Unknown> = (0..patch.free.len()).map(|j| Unknown::free(pos[j], dim)).collect();
+        for (j, &n) in patch.sliding.iter().enumerate() {
+            let at = pos[patch.free.len() + j];
+            let s = self.scale[patch.free.len() + j];
+            let frame = view.entity(n).and_then(|(edim, tag)| tangent_frame(projector, edim, tag, at, 1e-3 * s, dim));
+            unknowns.push(match frame {
+                Some(t) => Unknown { base: at, tangents: t, limit: SLIDE_LIMIT * s, on: view.entity(n) },
+                None => Unknown::fixed(at),
+            });
+        }
+        unknowns
     }
 }
 
@@ -502,6 +676,7 @@ struct Unknown {
 }
 
 impl Unknown {
+    /// A node free to move in every direction.
     fn free(base: [f64; 3], dim: usize) -> Unknown {
         let tangents = (0..dim)
             .map(|d| {
@@ -512,6 +687,7 @@ impl Unknown {
             .collect();
         Unknown { base, tangents, limit: f64::INFINITY, on: None }
     }
+    /// A node held where it is.
     fn fixed(base: [f64; 3]) -> Unknown {
         Unknown { base, tangents: Vec::new(), limit: f64::INFINITY, on: None }
     }
@@ -539,7 +715,143 @@ impl PatchProblem<'_, '_> {
     /// Minimise over `unknowns` (one per moving node) from `pos`, untangling
     /// first if a sample point is inverted; writes the new positions.
     fn minimise(&self, pos: &mut [[f64; 3]], unknowns: Vec<Unknown>, first_step: f64) {
-        let (dim, npc) = (self.dim, self.npc);
+        let vars = Variables::new(unknowns);
+        if vars.n_vars == 0 {
+            return;
+        }
+        let mut work =
+            Scratch { xe: vec![0.0; self.npc * self.dim], ge: vec![0.0; self.npc * self.dim], trial: pos.to_vec() };
+        let mut xe = vec![0.0; self.npc * self.dim];
+        let mut t = vec![0.0; vars.n_vars];
+        let mut jmin = self.min_det(pos, &mut xe);
+        for _ in 0..UNTANGLE_PASSES {
+            if jmin > UNTANGLED {
+                break;
+            }
+            let delta = (UNTANGLE_EPS * (UNTANGLE_EPS - jmin)).sqrt();
+            self.descend(&vars, &mut t, delta, first_step, &mut work);
+            let last = jmin;
+            let mut now = pos.to_vec();
+            self.place(&vars, &t, &mut now);
+            jmin = self.min_det(&now, &mut xe);
+            if jmin < 0.0 && jmin - last <= STALLED * delta {
+                // The worst point does not move: it depends on fixed nodes
+                // only, or the patch is too small; a larger one may help.
+                break;
+            }
+        }
+        if jmin > 0.0 {
+            self.descend(&vars, &mut t, 0.0, first_step, &mut work);
+        }
+        self.place(&vars, &t, pos);
+    }
+
+    /// L-BFGS on the energy regularised by `delta`, from the variables `t`.
+    fn descend(&self, vars: &Variables, t: &mut [f64], delta: f64, first_step: f64, work: &mut Scratch) {
+        let mut f = |t: &[f64], g: &mut [f64]| self.energy_grad(vars, t, g, delta, work);
+        lbfgs::minimise(t, &mut f, first_step, MAX_ITERATIONS, 1e-6);
+    }
+
+    /// The energy at the variables `t` (its gradient into `g`), or None where it is infinite.
+    fn energy_grad(&self, vars: &Variables, t: &[f64], g: &mut [f64], delta: f64, work: &mut Scratch) -> Option<f64> {
+        let dim = self.dim;
+        if !self.place(vars, t, &mut work.trial) {
+            return None;
+        }
+        g.iter_mut().for_each(|v| *v = 0.0);
+        let mut total = 0.0;
+        for k in 0..self.cells.len() {
+            let (cell, loc) = self.cell(k);
+            gather_moved(cell, loc, self.coords, &work.trial, dim, &mut work.xe);
+            work.ge.iter_mut().for_each(|v| *v = 0.0);
+            total += self.rule.energy_grad(&self.elements[k], &work.xe, delta, &mut work.ge)?;
+            for (a, &j) in loc.iter().enumerate() {
+                if j == usize::MAX {
+                    continue;
+                }
+                for (m, tm) in vars.unknowns[j].tangents.iter().enumerate() {
+                    g[vars.offsets[j] + m] += (0..dim).map(|d| tm[d] * work.ge[a * dim + d]).sum::<f64>();
+                }
+            }
+        }
+        Some(total)
+    }
+
+    /// The smallest sampled det J of the patch with its moving nodes at `p`.
+    fn min_det(&self, p: &[[f64; 3]], xe: &mut [f64]) -> f64 {
+        (0..self.cells.len())
+            .map(|k| {
+                let (cell, loc) = self.cell(k);
+                gather_moved(cell, loc, self.coords, p, self.dim, xe);
+                self.rule.min_det(&self.elements[k], xe)
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// The nodes of the patch's `k`-th cell, and their indices among the moving nodes.
+    fn cell(&self, k: usize) -> (&[usize], &[usize]) {
+        let (npc, c) = (self.npc, self.cells[k]);
+        (&self.all_cells[c * npc..(c + 1) * npc], &self.local[k * npc..(k + 1) * npc])
+    }
+
+    /// Write the moving nodes' positions at the variables `t` into `out`; false if that is not allowed.
+    fn place(&self, vars: &Variables, t: &[f64], out: &mut [[f64; 3]]) -> bool {
+        for (j, u) in vars.unknowns.iter().enumerate() {
+            let mut x = u.base;
+            let mut moved2 = 0.0;
+            for (m, tm) in u.tangents.iter().enumerate() {
+                let v = t[vars.offsets[j] + m];
+                for d in 0..3 {
+                    x[d] += v * tm[d];
+                }
+                moved2 += v * v;
+            }
+            if moved2.sqrt() > u.limit {
+                return false;
+            }
+            out[j] = x;
+        }
+        self.project(vars, out)
+    }
+
+    /// Project the sliding nodes in `out` onto their entity; false if the projector fails.
+    fn project(&self, vars: &Variables, out: &mut [[f64; 3]]) -> bool {
+        let dim = self.dim;
+        let Some(projector) = self.projector.filter(|_| !vars.on_entity.is_empty()) else { return true };
+        let Ok(projector) = projector.lock() else { return false };
+        for (&(edim, tag), js) in &vars.on_entity {
+            let points: Vec<[f64; 3]> = js.iter().map(|&j| out[j]).collect();
+            let mut projected = vec![[f64::NAN; 3]; js.len()];
+            if projector.project(edim, tag, &points, &mut projected).is_err() {
+                return false;
+            }
+            for (&j, y) in js.iter().zip(&projected) {
+                if !y[..dim].iter().all(|v| v.is_finite()) {
+                    return false;
+                }
+                out[j] = *y;
+                if dim == 2 {
+                    out[j][2] = 0.0;
+                }
+            }
+        }
+        true
+    }
+}
+
+/// The unknowns of one minimisation and where their variables are.
+struct Variables {
+    unknowns: Vec<Unknown>,
+    /// Index of each unknown's first variable.
+    offsets: Vec<usize>,
+    n_vars: usize,
+    /// The sliding unknowns by entity, in a deterministic order.
+    on_entity: BTreeMap<(usize, i32), Vec<usize>>,
+}
+
+impl Variables {
+    /// The variables of `unknowns`, one per tangent, in order.
+    fn new(unknowns: Vec<Unknown>) -> Variables {
         let offsets: Vec<usize> = unknowns
             .iter()
             .scan(0, |acc, u| {
@@ -549,114 +861,22 @@ impl PatchProblem<'_, '_> {
             })
             .collect();
         let n_vars = unknowns.iter().map(|u| u.tangents.len()).sum::<usize>();
-        if n_vars == 0 {
-            return;
-        }
-        // The sliding unknowns by entity, in a deterministic order.
         let mut on_entity: BTreeMap<(usize, i32), Vec<usize>> = BTreeMap::new();
         for (j, u) in unknowns.iter().enumerate() {
             if let (Some(e), false) = (u.on, u.tangents.is_empty()) {
                 on_entity.entry(e).or_default().push(j);
             }
         }
-        let place = |t: &[f64], out: &mut [[f64; 3]]| -> bool {
-            for (j, u) in unknowns.iter().enumerate() {
-                let mut x = u.base;
-                let mut moved2 = 0.0;
-                for (m, tm) in u.tangents.iter().enumerate() {
-                    let v = t[offsets[j] + m];
-                    for d in 0..3 {
-                        x[d] += v * tm[d];
-                    }
-                    moved2 += v * v;
-                }
-                if moved2.sqrt() > u.limit {
-                    return false;
-                }
-                out[j] = x;
-            }
-            let Some(projector) = self.projector.filter(|_| !on_entity.is_empty()) else { return true };
-            let Ok(projector) = projector.lock() else { return false };
-            for (&(edim, tag), js) in &on_entity {
-                let points: Vec<[f64; 3]> = js.iter().map(|&j| out[j]).collect();
-                let mut projected = vec![[f64::NAN; 3]; js.len()];
-                if projector.project(edim, tag, &points, &mut projected).is_err() {
-                    return false;
-                }
-                for (&j, y) in js.iter().zip(&projected) {
-                    if !y[..dim].iter().all(|v| v.is_finite()) {
-                        return false;
-                    }
-                    out[j] = *y;
-                    if dim == 2 {
-                        out[j][2] = 0.0;
-                    }
-                }
-            }
-            true
-        };
-        let mut xe = vec![0.0; npc * dim];
-        let mut ge = vec![0.0; npc * dim];
-        let mut trial = pos.to_vec();
-        let cell = |c: usize| &self.all_cells[c * npc..(c + 1) * npc];
-        let min_det = |p: &[[f64; 3]], xe: &mut [f64]| {
-            (0..self.cells.len())
-                .map(|k| {
-                    gather_moved(cell(self.cells[k]), &self.local[k * npc..(k + 1) * npc], self.coords, p, dim, xe);
-                    self.rule.min_det(&self.elements[k], xe)
-                })
-                .fold(f64::INFINITY, f64::min)
-        };
-        let mut xe_run = vec![0.0; npc * dim];
-        let mut run = |t: &mut Vec<f64>, delta: f64| {
-            let xe = &mut xe_run;
-            let mut f = |t: &[f64], g: &mut [f64]| -> Option<f64> {
-                if !place(t, &mut trial) {
-                    return None;
-                }
-                g.iter_mut().for_each(|v| *v = 0.0);
-                let mut total = 0.0;
-                for k in 0..self.cells.len() {
-                    let loc = &self.local[k * npc..(k + 1) * npc];
-                    gather_moved(cell(self.cells[k]), loc, self.coords, &trial, dim, xe);
-                    ge.iter_mut().for_each(|v| *v = 0.0);
-                    total += self.rule.energy_grad(&self.elements[k], xe, delta, &mut ge)?;
-                    for (a, &j) in loc.iter().enumerate() {
-                        if j == usize::MAX {
-                            continue;
-                        }
-                        for (m, tm) in unknowns[j].tangents.iter().enumerate() {
-                            g[offsets[j] + m] += (0..dim).map(|d| tm[d] * ge[a * dim + d]).sum::<f64>();
-                        }
-                    }
-                }
-                Some(total)
-            };
-            lbfgs::minimise(t, &mut f, first_step, MAX_ITERATIONS, 1e-6);
-        };
-        let mut t = vec![0.0; n_vars];
-        let mut jmin = min_det(pos, &mut xe);
-        for _ in 0..UNTANGLE_PASSES {
-            if jmin > UNTANGLED {
-                break;
-            }
-            let delta = (UNTANGLE_EPS * (UNTANGLE_EPS - jmin)).sqrt();
-            run(&mut t, delta);
-            let last = jmin;
-            let mut now = pos.to_vec();
-            place(&t, &mut now);
-            jmin = min_det(&now, &mut xe);
-            if jmin < 0.0 && jmin - last <= STALLED * delta {
-                // The worst point does not move: it depends on fixed nodes
-                // only, or the patch is too small; a larger one may help.
-                break;
-            }
-        }
-        if jmin > 0.0 {
-            run(&mut t, 0.0);
-        }
-        place(&t, pos);
+        Variables { unknowns, offsets, n_vars, on_entity }
     }
+}
+
+/// Buffers of the energy evaluations: one cell's coordinates and gradient,
+/// and the moving nodes' trial positions.
+struct Scratch {
+    xe: Vec<f64>,
+    ge: Vec<f64>,
+    trial: Vec<[f64; 3]>,
 }
 
 /// Index of node `n` among the moving nodes (`free`, then `sliding`), or usize::MAX.
@@ -675,6 +895,7 @@ fn gather_moved(cell: &[usize], local: &[usize], coords: &[f64], pos: &[[f64; 3]
     }
 }
 
+/// `x` (2 or 3 coordinates) as a 3D point.
 fn point(x: &[f64]) -> [f64; 3] {
     let mut p = [0.0; 3];
     p[..x.len()].copy_from_slice(x);
@@ -744,6 +965,7 @@ fn sample_rule(basis: &LagrangeBasis, lattice: usize) -> SampleRule {
     SampleRule { dim: tab.dim, n_basis: tab.n_basis, weights, ref_grads: tab.grads }
 }
 
+/// The node coordinates of one cell.
 fn gather(coords: &[f64], cell: &[usize], dim: usize) -> Vec<f64> {
     cell.iter().flat_map(|&n| coords[n * dim..(n + 1) * dim].iter().copied()).collect()
 }

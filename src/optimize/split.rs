@@ -13,7 +13,7 @@
 //! interior, so every point of the old cell now has free nodes around it.
 
 use crate::mesh::{HighOrderMesh, NodeConstraint};
-use crate::reference::LagrangeBasis;
+use crate::reference::{LagrangeBasis, NodeSet, Tabulation};
 
 /// Reference points closer than this are the same node.
 const SAME_POINT: f64 = 1e-9;
@@ -29,13 +29,120 @@ pub fn split_at_centroids(
     basis: &LagrangeBasis,
     cells: &[usize],
 ) -> Vec<usize> {
+    let plan = SplitPlan::new(mesh, basis);
+    let mut parent: Vec<usize> = (0..mesh.n_cells()).collect();
+    for &c in cells {
+        plan.split(mesh, straight, c, &mut parent);
+    }
+    parent
+}
+
+/// A node of a sub-cell: an old node of the cell, or a new node (shared
+/// by the sub-cells, numbered in order of first appearance).
+enum Source {
+    Old(usize),
+    New(usize),
+}
+
+/// How every cell of an order splits, in reference coordinates.
+struct SplitPlan {
+    dim: usize,
+    npc: usize,
+    /// Per sub-cell, the source of each of its nodes.
+    sources: Vec<Vec<Source>>,
+    /// The reference points of the new nodes.
+    new_points: Vec<[f64; 3]>,
+    /// The old nodes strictly inside the cell.
+    interior: Vec<usize>,
+    /// The basis at `new_points`.
+    table: Tabulation,
+}
+
+impl SplitPlan {
+    /// The plan for the cells of `mesh`, whose nodes are those of `basis`.
+    fn new(mesh: &HighOrderMesh, basis: &LagrangeBasis) -> SplitPlan {
+        let dim = mesh.dim();
+        let nodes = basis.nodes();
+        let npc = nodes.len();
+        let nv = dim + 1;
+        let sub_points = sub_cell_points(mesh, nodes);
+        let (sources, new_points) = node_sources(&sub_points, nodes, dim);
+        // Old nodes strictly inside the cell disappear with it: their numbers are reused.
+        let interior: Vec<usize> = (0..npc).filter(|&b| nodes.multi[b][..nv].iter().all(|&m| m > 0)).collect();
+        let table = basis.tabulate(&new_points);
+        SplitPlan { dim, npc, sources, new_points, interior, table }
+    }
+
+    /// Split cell `c`: its first sub-cell takes its place, the others are appended (parents in `parent`).
+    fn split(&self, mesh: &mut HighOrderMesh, straight: &mut Vec<f64>, c: usize, parent: &mut Vec<usize>) {
+        let npc = self.npc;
+        let old: Vec<usize> = mesh.cell(c).to_vec();
+        // The old cell's maps at the new points, before any old node is reused.
+        let (curved, flat) = (self.eval(&old, &mesh.coords), self.eval(&old, straight));
+        let numbers = self.number_new_nodes(mesh, straight, &old, &curved, &flat);
+        for (k, src) in self.sources.iter().enumerate() {
+            let conn: Vec<usize> = src
+                .iter()
+                .map(|s| match *s {
+                    Source::Old(b) => old[b],
+                    Source::New(j) => numbers[j],
+                })
+                .collect();
+            if k == 0 {
+                mesh.cells[c * npc..(c + 1) * npc].copy_from_slice(&conn);
+            } else {
+                mesh.cells.extend(conn);
+                parent.push(c);
+            }
+        }
+    }
+
+    /// The map of the cell with nodes `old` and positions `xs` at the new points.
+    fn eval(&self, old: &[usize], xs: &[f64]) -> Vec<f64> {
+        let dim = self.dim;
+        self.table
+            .values
+            .chunks_exact(self.npc)
+            .flat_map(|values| {
+                (0..dim).map(move |d| values.iter().zip(old).map(|(v, &b)| v * xs[b * dim + d]).sum::<f64>())
+            })
+            .collect()
+    }
+
+    /// Number the new nodes of a cell (reusing its interior nodes') and place them at `curved` and `flat`.
+    fn number_new_nodes(
+        &self,
+        mesh: &mut HighOrderMesh,
+        straight: &mut Vec<f64>,
+        old: &[usize],
+        curved: &[f64],
+        flat: &[f64],
+    ) -> Vec<usize> {
+        let dim = self.dim;
+        let mut reuse = self.interior.iter().map(|&b| old[b]);
+        (0..self.new_points.len())
+            .map(|j| {
+                let n = reuse.next().unwrap_or_else(|| {
+                    mesh.constraint.push(NodeConstraint::Free);
+                    mesh.coords.extend(std::iter::repeat_n(0.0, dim));
+                    straight.extend(std::iter::repeat_n(0.0, dim));
+                    mesh.constraint.len() - 1
+                });
+                mesh.coords[n * dim..(n + 1) * dim].copy_from_slice(&curved[j * dim..(j + 1) * dim]);
+                straight[n * dim..(n + 1) * dim].copy_from_slice(&flat[j * dim..(j + 1) * dim]);
+                n
+            })
+            .collect()
+    }
+}
+
+/// The nodes of the sub-cells as reference points of the old cell.
+fn sub_cell_points(mesh: &HighOrderMesh, nodes: &NodeSet) -> Vec<Vec<[f64; 3]>> {
+    // Sub-cell k has the old vertices but k, and the centroid in slot k
+    // (same orientation).
     let dim = mesh.dim();
-    let nodes = basis.nodes();
     let npc = nodes.len();
     let nv = dim + 1;
-    let mut parent: Vec<usize> = (0..mesh.n_cells()).collect();
-    // The sub-cells as reference points of the old cell: sub-cell k has
-    // the old vertices but k, and the centroid in slot k (same orientation).
     let vertices = mesh.simplex.vertex_coords();
     let mut centroid = [0.0; 3];
     for v in &vertices[..nv] {
@@ -43,7 +150,7 @@ pub fn split_at_centroids(
             centroid[d] += v[d] / nv as f64;
         }
     }
-    let sub_points: Vec<Vec<[f64; 3]>> = (0..nv)
+    (0..nv)
         .map(|k| {
             (0..npc)
                 .map(|a| {
@@ -59,13 +166,11 @@ pub fn split_at_centroids(
                 })
                 .collect()
         })
-        .collect();
-    // Each sub-cell node: an old node of the cell, or a new node (shared
-    // by the sub-cells, numbered in order of first appearance).
-    enum Source {
-        Old(usize),
-        New(usize),
-    }
+        .collect()
+}
+
+/// The source of each sub-cell node, and the reference points of the new nodes.
+fn node_sources(sub_points: &[Vec<[f64; 3]>], nodes: &NodeSet, dim: usize) -> (Vec<Vec<Source>>, Vec<[f64; 3]>) {
     let mut new_points: Vec<[f64; 3]> = Vec::new();
     let sources: Vec<Vec<Source>> = sub_points
         .iter()
@@ -85,54 +190,7 @@ pub fn split_at_centroids(
                 .collect()
         })
         .collect();
-    // Old nodes strictly inside the cell disappear with it: their numbers are reused.
-    let interior: Vec<usize> = (0..npc).filter(|&b| nodes.multi[b][..nv].iter().all(|&m| m > 0)).collect();
-    let table = basis.tabulate(&new_points);
-    for &c in cells {
-        let old: Vec<usize> = mesh.cell(c).to_vec();
-        // The old cell's maps at the new points, before any old node is reused.
-        let old_ref = &old;
-        let eval = |xs: &[f64]| -> Vec<f64> {
-            table
-                .values
-                .chunks_exact(npc)
-                .flat_map(|values| {
-                    (0..dim).map(move |d| values.iter().zip(old_ref).map(|(v, &b)| v * xs[b * dim + d]).sum::<f64>())
-                })
-                .collect()
-        };
-        let (curved, flat) = (eval(&mesh.coords), eval(straight));
-        let mut reuse = interior.iter().map(|&b| old[b]);
-        let numbers: Vec<usize> = (0..new_points.len())
-            .map(|j| {
-                let n = reuse.next().unwrap_or_else(|| {
-                    mesh.constraint.push(NodeConstraint::Free);
-                    mesh.coords.extend(std::iter::repeat_n(0.0, dim));
-                    straight.extend(std::iter::repeat_n(0.0, dim));
-                    mesh.constraint.len() - 1
-                });
-                mesh.coords[n * dim..(n + 1) * dim].copy_from_slice(&curved[j * dim..(j + 1) * dim]);
-                straight[n * dim..(n + 1) * dim].copy_from_slice(&flat[j * dim..(j + 1) * dim]);
-                n
-            })
-            .collect();
-        for (k, src) in sources.iter().enumerate() {
-            let conn: Vec<usize> = src
-                .iter()
-                .map(|s| match *s {
-                    Source::Old(b) => old[b],
-                    Source::New(j) => numbers[j],
-                })
-                .collect();
-            if k == 0 {
-                mesh.cells[c * npc..(c + 1) * npc].copy_from_slice(&conn);
-            } else {
-                mesh.cells.extend(conn);
-                parent.push(c);
-            }
-        }
-    }
-    parent
+    (sources, new_points)
 }
 
 #[cfg(test)]
