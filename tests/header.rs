@@ -44,7 +44,7 @@ fn declared_names(header: &str) -> Vec<String> {
         if let Some(rest) = l.strip_prefix("#define ") {
             names.push(word(rest));
         } else if l.starts_with("typedef") {
-            let last = l.trim_end_matches(';').rsplit(|c: char| c == ' ' || c == '*').next().unwrap_or("");
+            let last = l.trim_end_matches(';').rsplit([' ', '*']).next().unwrap_or("");
             let name = if l.contains("(*") { word(l.split("(*").nth(1).unwrap_or("")) } else { word(last) };
             names.push(name);
         } else if let Some(rest) = l.strip_prefix("struct ") {
@@ -52,7 +52,7 @@ fn declared_names(header: &str) -> Vec<String> {
         } else if l.starts_with('}') && l.ends_with(';') {
             names.push(word(l.trim_start_matches('}').trim()));
         } else if !l.starts_with(['#', '*', '/']) && l.contains('(') && !l.starts_with("extern") {
-            names.push(word(l[..l.find('(').unwrap()].rsplit(|c: char| c == ' ' || c == '*').next().unwrap_or("")));
+            names.push(word(l[..l.find('(').unwrap()].rsplit([' ', '*']).next().unwrap_or("")));
         }
     }
     names.retain(|n| !n.is_empty() && n != "HOCURVE_H");
