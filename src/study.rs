@@ -258,105 +258,153 @@ impl Study {
     /// a polyline with markers per formulation, failed runs as crosses on
     /// the ν axis, and a legend.
     pub fn svg(&self, case: &str, order: usize) -> String {
-        const W: f64 = 560.0;
-        const H: f64 = 380.0;
-        let (x0, x1, y0, y1) = (60.0, W - 150.0, 40.0, H - 50.0);
-        let (ymin, ymax) = (-0.1, 1.0);
-        let px = |nu: f64| x0 + (x1 - x0) * nu / 0.5;
-        let py = |q: f64| y1 - (y1 - y0) * (q.clamp(ymin, ymax) - ymin) / (ymax - ymin);
-        const COLOURS: [&str; 6] = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"];
-        let mut s = format!(
-            "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{W}\" height=\"{H}\" viewBox=\"0 0 {W} {H}\" \
-             font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"{W}\" height=\"{H}\" fill=\"white\"/>\n"
-        );
-        s += &format!(
-            "<text x=\"{:.1}\" y=\"22\" text-anchor=\"middle\" font-size=\"14\">{case}, p = {order}: min Q3 vs Poisson's ratio</text>\n",
-            (x0 + x1) / 2.0
-        );
-        // Grid and ticks.
-        for k in 0..=11 {
-            let q = -0.1 + 0.1 * k as f64;
-            let y = py(q);
-            let stroke = if k == 1 { "#000" } else { "#ddd" };
-            s += &format!("<line x1=\"{x0}\" y1=\"{y:.1}\" x2=\"{x1}\" y2=\"{y:.1}\" stroke=\"{stroke}\"/>\n");
-            s += &format!("<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{q:.1}</text>\n", x0 - 6.0, y + 4.0);
-        }
-        for k in 0..=5 {
-            let nu = 0.1 * k as f64;
-            let x = px(nu);
-            s += &format!("<line x1=\"{x:.1}\" y1=\"{y0}\" x2=\"{x:.1}\" y2=\"{y1}\" stroke=\"#ddd\"/>\n");
-            s += &format!("<text x=\"{x:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{nu:.1}</text>\n", y1 + 16.0);
-        }
-        s += &format!(
-            "<rect x=\"{x0}\" y=\"{y0}\" width=\"{}\" height=\"{}\" fill=\"none\" stroke=\"#000\"/>\n",
-            x1 - x0,
-            y1 - y0
-        );
-        s += &format!(
-            "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">Poisson's ratio ν</text>\n",
-            (x0 + x1) / 2.0,
-            H - 12.0
-        );
-        s += &format!(
-            "<text x=\"16\" y=\"{:.1}\" text-anchor=\"middle\" transform=\"rotate(-90 16 {:.1})\">min Q3</text>\n",
-            (y0 + y1) / 2.0,
-            (y0 + y1) / 2.0
-        );
-        let axis_y = py(0.0);
+        let b = PlotBox::new();
+        let mut s = String::new();
+        svg_frame(&mut s, &b, case, order);
+        let axis_y = b.py(0.0);
         for (fi, f) in self.formulations.iter().enumerate() {
             let colour = COLOURS[fi % COLOURS.len()];
             let series = self.series(case, order, f);
             let pts: Vec<String> = series
                 .iter()
                 .filter(|c| !c.failed())
-                .map(|c| format!("{:.1},{:.1}", px(c.poisson), py(c.min_q3)))
+                .map(|c| format!("{:.1},{:.1}", b.px(c.poisson), b.py(c.min_q3)))
                 .collect();
             s += &format!(
                 "<polyline points=\"{}\" fill=\"none\" stroke=\"{colour}\" stroke-width=\"2\"/>\n",
                 pts.join(" ")
             );
             for c in &series {
-                let x = px(c.poisson);
-                if c.failed() {
-                    let d = 5.0;
-                    let y = axis_y + 3.0 * fi as f64;
-                    s += &format!(
-                        "<path d=\"M{:.1},{:.1} L{:.1},{:.1} M{:.1},{:.1} L{:.1},{:.1}\" stroke=\"{colour}\" stroke-width=\"2\"><title>{f} ν={} failed</title></path>\n",
-                        x - d, y - d, x + d, y + d, x - d, y + d, x + d, y - d, c.poisson
-                    );
-                } else {
-                    s += &format!(
-                        "<circle cx=\"{x:.1}\" cy=\"{:.1}\" r=\"3.5\" fill=\"{colour}\"><title>{f} ν={} Q3={:.4}</title></circle>\n",
-                        py(c.min_q3),
-                        c.poisson,
-                        c.min_q3
-                    );
-                }
+                svg_marker(&mut s, &b, c, f, colour, axis_y + 3.0 * fi as f64);
             }
-            // Legend.
-            let ly = y0 + 10.0 + 20.0 * fi as f64;
-            s += &format!(
-                "<line x1=\"{:.1}\" y1=\"{ly:.1}\" x2=\"{:.1}\" y2=\"{ly:.1}\" stroke=\"{colour}\" stroke-width=\"2\"/>\n",
-                x1 + 12.0,
-                x1 + 36.0
-            );
-            s += &format!("<circle cx=\"{:.1}\" cy=\"{ly:.1}\" r=\"3.5\" fill=\"{colour}\"/>\n", x1 + 24.0);
-            s += &format!("<text x=\"{:.1}\" y=\"{:.1}\">{f}</text>\n", x1 + 42.0, ly + 4.0);
+            svg_legend_entry(&mut s, &b, f, colour, b.y0 + 10.0 + 20.0 * fi as f64);
         }
-        let ly = y0 + 10.0 + 20.0 * self.formulations.len() as f64;
-        s += &format!(
-            "<path d=\"M{:.1},{:.1} L{:.1},{:.1} M{:.1},{:.1} L{:.1},{:.1}\" stroke=\"#555\" stroke-width=\"2\"/>\n",
-            x1 + 19.0,
-            ly - 5.0,
-            x1 + 29.0,
-            ly + 5.0,
-            x1 + 19.0,
-            ly + 5.0,
-            x1 + 29.0,
-            ly - 5.0
-        );
-        s += &format!("<text x=\"{:.1}\" y=\"{:.1}\">failed</text>\n", x1 + 42.0, ly + 4.0);
+        svg_failed_legend(&mut s, &b, b.y0 + 10.0 + 20.0 * self.formulations.len() as f64);
         s += "</svg>\n";
         s
     }
+}
+
+/// Width of a study plot (SVG units).
+const PLOT_W: f64 = 560.0;
+/// Height of a study plot (SVG units).
+const PLOT_H: f64 = 380.0;
+/// Colours of the formulations, in order (repeated beyond six).
+const COLOURS: [&str; 6] = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"];
+
+/// The axes box of a study plot and the maps of ν ∈ [0, 0.5] and Q3 ∈ [−0.1, 1] onto it.
+#[derive(Clone, Copy)]
+struct PlotBox {
+    x0: f64,
+    x1: f64,
+    y0: f64,
+    y1: f64,
+}
+
+impl PlotBox {
+    /// The box of every study plot.
+    fn new() -> PlotBox {
+        let (x0, x1, y0, y1) = (60.0, PLOT_W - 150.0, 40.0, PLOT_H - 50.0);
+        PlotBox { x0, x1, y0, y1 }
+    }
+
+    /// The x of Poisson's ratio `nu`.
+    fn px(&self, nu: f64) -> f64 {
+        self.x0 + (self.x1 - self.x0) * nu / 0.5
+    }
+
+    /// The y of quality `q` (clamped to the Q3 range).
+    fn py(&self, q: f64) -> f64 {
+        let (ymin, ymax) = (-0.1, 1.0);
+        self.y1 - (self.y1 - self.y0) * (q.clamp(ymin, ymax) - ymin) / (ymax - ymin)
+    }
+}
+
+/// The SVG header and the plot's frame: title, grid, ticks, box and axis labels.
+fn svg_frame(s: &mut String, b: &PlotBox, case: &str, order: usize) {
+    let PlotBox { x0, x1, y0, y1 } = *b;
+    *s += &format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{PLOT_W}\" height=\"{PLOT_H}\" viewBox=\"0 0 {PLOT_W} {PLOT_H}\" \
+         font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"{PLOT_W}\" height=\"{PLOT_H}\" fill=\"white\"/>\n"
+    );
+    *s += &format!(
+        "<text x=\"{:.1}\" y=\"22\" text-anchor=\"middle\" font-size=\"14\">{case}, p = {order}: min Q3 vs Poisson's ratio</text>\n",
+        (x0 + x1) / 2.0
+    );
+    // Grid and ticks.
+    for k in 0..=11 {
+        let q = -0.1 + 0.1 * k as f64;
+        let y = b.py(q);
+        let stroke = if k == 1 { "#000" } else { "#ddd" };
+        *s += &format!("<line x1=\"{x0}\" y1=\"{y:.1}\" x2=\"{x1}\" y2=\"{y:.1}\" stroke=\"{stroke}\"/>\n");
+        *s += &format!("<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{q:.1}</text>\n", x0 - 6.0, y + 4.0);
+    }
+    for k in 0..=5 {
+        let nu = 0.1 * k as f64;
+        let x = b.px(nu);
+        *s += &format!("<line x1=\"{x:.1}\" y1=\"{y0}\" x2=\"{x:.1}\" y2=\"{y1}\" stroke=\"#ddd\"/>\n");
+        *s += &format!("<text x=\"{x:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{nu:.1}</text>\n", y1 + 16.0);
+    }
+    *s += &format!(
+        "<rect x=\"{x0}\" y=\"{y0}\" width=\"{}\" height=\"{}\" fill=\"none\" stroke=\"#000\"/>\n",
+        x1 - x0,
+        y1 - y0
+    );
+    *s += &format!(
+        "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">Poisson's ratio ν</text>\n",
+        (x0 + x1) / 2.0,
+        PLOT_H - 12.0
+    );
+    *s += &format!(
+        "<text x=\"16\" y=\"{:.1}\" text-anchor=\"middle\" transform=\"rotate(-90 16 {:.1})\">min Q3</text>\n",
+        (y0 + y1) / 2.0,
+        (y0 + y1) / 2.0
+    );
+}
+
+/// One run's marker: a dot at its min Q3, or a cross at height `y` if it failed.
+fn svg_marker(s: &mut String, b: &PlotBox, c: &StudyCell, f: &str, colour: &str, y: f64) {
+    let x = b.px(c.poisson);
+    if c.failed() {
+        let d = 5.0;
+        *s += &format!(
+            "<path d=\"{}\" stroke=\"{colour}\" stroke-width=\"2\"><title>{f} ν={} failed</title></path>\n",
+            cross_path(x - d, y - d, x + d, y + d),
+            c.poisson
+        );
+    } else {
+        *s += &format!(
+            "<circle cx=\"{x:.1}\" cy=\"{:.1}\" r=\"3.5\" fill=\"{colour}\"><title>{f} ν={} Q3={:.4}</title></circle>\n",
+            b.py(c.min_q3),
+            c.poisson,
+            c.min_q3
+        );
+    }
+}
+
+/// The legend entry of formulation `f` at height `ly`: a line, a dot and its name.
+fn svg_legend_entry(s: &mut String, b: &PlotBox, f: &str, colour: &str, ly: f64) {
+    let x1 = b.x1;
+    *s += &format!(
+        "<line x1=\"{:.1}\" y1=\"{ly:.1}\" x2=\"{:.1}\" y2=\"{ly:.1}\" stroke=\"{colour}\" stroke-width=\"2\"/>\n",
+        x1 + 12.0,
+        x1 + 36.0
+    );
+    *s += &format!("<circle cx=\"{:.1}\" cy=\"{ly:.1}\" r=\"3.5\" fill=\"{colour}\"/>\n", x1 + 24.0);
+    *s += &format!("<text x=\"{:.1}\" y=\"{:.1}\">{f}</text>\n", x1 + 42.0, ly + 4.0);
+}
+
+/// The legend entry of failed runs at height `ly`: a grey cross.
+fn svg_failed_legend(s: &mut String, b: &PlotBox, ly: f64) {
+    let x1 = b.x1;
+    *s += &format!(
+        "<path d=\"{}\" stroke=\"#555\" stroke-width=\"2\"/>\n",
+        cross_path(x1 + 19.0, ly - 5.0, x1 + 29.0, ly + 5.0)
+    );
+    *s += &format!("<text x=\"{:.1}\" y=\"{:.1}\">failed</text>\n", x1 + 42.0, ly + 4.0);
+}
+
+/// The path data of a cross: the diagonals of the box from (`xa`, `ya`) to (`xb`, `yb`).
+fn cross_path(xa: f64, ya: f64, xb: f64, yb: f64) -> String {
+    format!("M{xa:.1},{ya:.1} L{xb:.1},{yb:.1} M{xa:.1},{yb:.1} L{xb:.1},{ya:.1}")
 }

@@ -83,7 +83,23 @@ pub fn condense_element(
     let (ni, nb) = (ii.len(), bb.len());
     let n = ni + nb;
     let (w, g) = keep.split_at_mut(ni * nb);
-    // LU of K_II with partial pivoting.
+    factor_interior(ii, ke, n, ws)?;
+    // Right-hand sides in the pivoted row order: K_IB and f_I = −re_I.
+    for (i, &pi) in ws.perm.iter().enumerate() {
+        let r = ii[pi];
+        for (b, &c) in bb.iter().enumerate() {
+            w[i * nb + b] = ke[r * n + c];
+        }
+        g[i] = re.as_ref().map_or(0.0, |re| -re[r]);
+    }
+    substitute(&ws.lu, ni, nb, w, g);
+    schur_update(split, ke, re, w, g, ws);
+    Ok(())
+}
+
+/// LU of K_II with partial pivoting into `ws.lu` and `ws.perm`; fails on a pivot ≤ 1e-14 of the largest entry.
+fn factor_interior(ii: &[usize], ke: &[f64], n: usize, ws: &mut CondenseWorkspace) -> Result<(), SingularInterior> {
+    let ni = ii.len();
     ws.lu.clear();
     for &r in ii {
         ws.lu.extend(ii.iter().map(|&c| ke[r * n + c]));
@@ -113,14 +129,11 @@ pub fn condense_element(
             }
         }
     }
-    // Right-hand sides in the pivoted row order: K_IB and f_I = −re_I.
-    for (i, &pi) in ws.perm.iter().enumerate() {
-        let r = ii[pi];
-        for (b, &c) in bb.iter().enumerate() {
-            w[i * nb + b] = ke[r * n + c];
-        }
-        g[i] = re.as_ref().map_or(0.0, |re| -re[r]);
-    }
+    Ok(())
+}
+
+/// W ← K_II⁻¹ W and g ← K_II⁻¹ g by forward and backward substitution with the LU factors `lu`.
+fn substitute(lu: &[f64], ni: usize, nb: usize, w: &mut [f64], g: &mut [f64]) {
     // Forward (unit L) then backward (U) substitution, row by row over all columns.
     for i in 0..ni {
         for k in 0..i {
@@ -147,8 +160,20 @@ pub fn condense_element(
         w[i * nb..(i + 1) * nb].iter_mut().for_each(|x| *x *= d);
         g[i] *= d;
     }
-    // K_BB −= K_BI W and re_B += K_BI g.
-    let mut re = re;
+}
+
+/// K_BB −= K_BI W and re_B += K_BI g, in place in `ke` and `re`.
+fn schur_update(
+    split: &LocalSplit,
+    ke: &mut [f64],
+    mut re: Option<&mut [f64]>,
+    w: &[f64],
+    g: &[f64],
+    ws: &mut CondenseWorkspace,
+) {
+    let (ii, bb) = (&split.interior, &split.boundary);
+    let nb = bb.len();
+    let n = ii.len() + nb;
     for &r in bb {
         let row = &mut ke[r * n..(r + 1) * n];
         ws.kbi.clear();
@@ -169,7 +194,6 @@ pub fn condense_element(
             re[r] += kbi.iter().zip(g.iter()).map(|(k, gi)| k * gi).sum::<f64>();
         }
     }
-    Ok(())
 }
 
 /// What the condensed assembly kept to recover the interior unknowns: W and g

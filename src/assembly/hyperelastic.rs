@@ -103,7 +103,6 @@ impl ElementKernel for MaterialKernel<'_> {
     ) -> Result<(), f64> {
         let c = self.cache;
         let (n, dim) = (c.n_basis, c.dim);
-        let nd = n * dim;
         ke.fill(0.0);
         if let Some(r) = re.as_deref_mut() {
             r.fill(0.0);
@@ -127,53 +126,67 @@ impl ElementKernel for MaterialKernel<'_> {
                 None => self.material.stress_and_tangent(&f, fibre),
             };
             let w = c.weights[q] * det;
-            let g = &ws.grad;
-            // t[a][i][j][l] = Σ_k g_a,k c_ikjl
-            for a in 0..n {
-                for i in 0..dim {
-                    for j in 0..dim {
-                        for l in 0..dim {
-                            ws.t[((a * dim + i) * dim + j) * dim + l] =
-                                (0..dim).map(|k| g[a * dim + k] * tangent[i][k][j][l]).sum();
-                        }
-                    }
-                }
-            }
-            let geometric = self.mode == TangentMode::Consistent;
-            for a in 0..n {
-                for b in 0..n {
-                    let gs = if geometric {
-                        let mut s = 0.0;
-                        for k in 0..dim {
-                            for l in 0..dim {
-                                s += g[a * dim + k] * sigma[k][l] * g[b * dim + l];
-                            }
-                        }
-                        s
-                    } else {
-                        0.0
-                    };
-                    for i in 0..dim {
-                        for j in 0..dim {
-                            let t = &ws.t[((a * dim + i) * dim + j) * dim..((a * dim + i) * dim + j + 1) * dim];
-                            let mut v: f64 = (0..dim).map(|l| t[l] * g[b * dim + l]).sum();
-                            if i == j {
-                                v += gs;
-                            }
-                            ke[(a * dim + i) * nd + b * dim + j] += w * v;
-                        }
-                    }
-                }
-            }
+            tangent_gradients(n, dim, &ws.grad, &tangent, &mut ws.t);
+            let geometric = (self.mode == TangentMode::Consistent).then_some(&sigma);
+            add_stiffness(n, dim, &ws.grad, &ws.t, geometric, w, ke);
             if let Some(r) = re.as_deref_mut() {
-                for a in 0..n {
-                    for i in 0..dim {
-                        r[a * dim + i] += w * (0..dim).map(|k| sigma[i][k] * g[a * dim + k]).sum::<f64>();
-                    }
-                }
+                add_internal_force(n, dim, &ws.grad, &sigma, w, r);
             }
         }
         Ok(())
+    }
+}
+
+/// t[a][i][j][l] = Σ_k g_a,k c_ikjl at one point, for the physical gradients `g` and the tangent c.
+fn tangent_gradients(n: usize, dim: usize, g: &[f64], tangent: &Tangent, t: &mut [f64]) {
+    for a in 0..n {
+        for i in 0..dim {
+            for j in 0..dim {
+                for l in 0..dim {
+                    t[((a * dim + i) * dim + j) * dim + l] =
+                        (0..dim).map(|k| g[a * dim + k] * tangent[i][k][j][l]).sum();
+                }
+            }
+        }
+    }
+}
+
+/// Add one point's material term (from `t`) and geometric term (given σ) to `ke`, with weight `w`.
+fn add_stiffness(n: usize, dim: usize, g: &[f64], t: &[f64], geometric: Option<&Mat3>, w: f64, ke: &mut [f64]) {
+    let nd = n * dim;
+    for a in 0..n {
+        for b in 0..n {
+            let gs = if let Some(sigma) = geometric {
+                let mut s = 0.0;
+                for k in 0..dim {
+                    for l in 0..dim {
+                        s += g[a * dim + k] * sigma[k][l] * g[b * dim + l];
+                    }
+                }
+                s
+            } else {
+                0.0
+            };
+            for i in 0..dim {
+                for j in 0..dim {
+                    let t = &t[((a * dim + i) * dim + j) * dim..((a * dim + i) * dim + j + 1) * dim];
+                    let mut v: f64 = (0..dim).map(|l| t[l] * g[b * dim + l]).sum();
+                    if i == j {
+                        v += gs;
+                    }
+                    ke[(a * dim + i) * nd + b * dim + j] += w * v;
+                }
+            }
+        }
+    }
+}
+
+/// Add one point's r_(a i) += w σ_ik ∂_k N_a to the internal-force vector.
+fn add_internal_force(n: usize, dim: usize, g: &[f64], sigma: &Mat3, w: f64, r: &mut [f64]) {
+    for a in 0..n {
+        for i in 0..dim {
+            r[a * dim + i] += w * (0..dim).map(|k| sigma[i][k] * g[a * dim + k]).sum::<f64>();
+        }
     }
 }
 

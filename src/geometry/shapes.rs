@@ -57,85 +57,16 @@ impl Shape {
     /// assert_eq!(Shape::parse(&s.to_string()).unwrap(), s);
     /// ```
     pub fn parse(s: &str) -> Result<Shape> {
-        let bad = |why: String| Error::InvalidInput(format!("shape \"{s}\": {why}"));
-        let (kind, rest) = s.split_once(':').ok_or_else(|| bad("expected KIND:values, e.g. sphere:0,0,0,1".into()))?;
-        let kind = kind.trim().to_ascii_lowercase();
-        let items: Vec<&str> = rest.split(',').map(str::trim).collect();
-        let numbers = |from: usize| -> Result<Vec<f64>> {
-            items[from..]
-                .iter()
-                .map(|t| match t.parse::<f64>() {
-                    Ok(v) if v.is_finite() => Ok(v),
-                    Ok(_) => Err(bad(format!("\"{t}\" is not a finite number"))),
-                    Err(_) => Err(bad(format!("\"{t}\" is not a number"))),
-                })
-                .collect()
+        let (kind, rest) =
+            s.split_once(':').ok_or_else(|| bad_shape(s, "expected KIND:values, e.g. sphere:0,0,0,1".into()))?;
+        let text = ShapeText {
+            text: s,
+            kind: kind.trim().to_ascii_lowercase(),
+            items: rest.split(',').map(str::trim).collect(),
         };
-        let count = |v: &[f64], n: &[usize], syntax: &str| -> Result<()> {
-            if n.contains(&v.len()) {
-                Ok(())
-            } else {
-                Err(bad(format!("{kind} expects {syntax}, got {} value(s)", v.len())))
-            }
-        };
-        let shape = match kind.as_str() {
-            "circle" => {
-                let v = numbers(0)?;
-                count(&v, &[3], "cx,cy,r")?;
-                Shape::Circle { center: [v[0], v[1]], radius: v[2] }
-            }
-            "circle3" => {
-                let v = numbers(0)?;
-                count(&v, &[7], "cx,cy,cz,nx,ny,nz,r")?;
-                Shape::Circle3 { center: [v[0], v[1], v[2]], normal: [v[3], v[4], v[5]], radius: v[6] }
-            }
-            "sphere" => {
-                let v = numbers(0)?;
-                count(&v, &[4], "cx,cy,cz,r")?;
-                Shape::Sphere { center: [v[0], v[1], v[2]], radius: v[3] }
-            }
-            "cylinder" => {
-                let v = numbers(0)?;
-                count(&v, &[7], "px,py,pz,ax,ay,az,r")?;
-                Shape::Cylinder { point: [v[0], v[1], v[2]], axis: [v[3], v[4], v[5]], radius: v[6] }
-            }
-            "torus" => {
-                let v = numbers(0)?;
-                count(&v, &[5, 8], "cx,cy,cz,R,r or cx,cy,cz,ax,ay,az,R,r")?;
-                let (axis, major, minor) =
-                    if v.len() == 5 { ([0.0, 0.0, 1.0], v[3], v[4]) } else { ([v[3], v[4], v[5]], v[6], v[7]) };
-                Shape::Torus { center: [v[0], v[1], v[2]], axis, major, minor }
-            }
-            "plane" => {
-                let v = numbers(0)?;
-                count(&v, &[6], "px,py,pz,nx,ny,nz")?;
-                Shape::Plane { point: [v[0], v[1], v[2]], normal: [v[3], v[4], v[5]] }
-            }
-            "line" => {
-                let v = numbers(0)?;
-                count(&v, &[6], "px,py,pz,dx,dy,dz")?;
-                Shape::Line { point: [v[0], v[1], v[2]], direction: [v[3], v[4], v[5]] }
-            }
-            "naca4" => {
-                let code = items[0];
-                let b = code.as_bytes();
-                if b.len() != 4 || !b.iter().all(u8::is_ascii_digit) {
-                    return Err(bad(format!("naca4 expects four digits first (e.g. 2412), got \"{code}\"")));
-                }
-                let digits = [b[0] - b'0', b[1] - b'0', b[2] - b'0', b[3] - b'0'];
-                let v = numbers(1)?;
-                count(&v, &[3], "DDDD,chord,x0,y0 (3 numbers after the digits)")?;
-                Shape::Naca4 { digits, chord: v[0], origin: [v[1], v[2]] }
-            }
-            _ => {
-                return Err(bad(format!(
-                    "unknown kind \"{kind}\" (expected circle, circle3, sphere, cylinder, \
-                     torus, plane, line or naca4)"
-                )))
-            }
-        };
+        let shape = text.shape()?;
         shape.validate().map_err(|e| match e {
-            Error::InvalidInput(m) => bad(m),
+            Error::InvalidInput(m) => bad_shape(s, m),
             other => other,
         })?;
         Ok(shape)
@@ -283,6 +214,99 @@ impl Shape {
             Shape::Line { point, direction } => norm(cross(sub(x, *point), unit(*direction))),
             Shape::Naca4 { .. } => norm(sub(x, self.closest_point(x))),
         }
+    }
+}
+
+/// The error about the shape text `s`: `why` it is not a valid shape.
+fn bad_shape(s: &str, why: String) -> Error {
+    Error::InvalidInput(format!("shape \"{s}\": {why}"))
+}
+
+/// A shape's text split into its kind (lower case) and its comma-separated
+/// items, for [`Shape::parse`].
+struct ShapeText<'a> {
+    text: &'a str,
+    kind: String,
+    items: Vec<&'a str>,
+}
+
+impl ShapeText<'_> {
+    /// The error `why` about this text.
+    fn bad(&self, why: String) -> Error {
+        bad_shape(self.text, why)
+    }
+
+    /// The items from `from` on as finite numbers, as many as one of `counts` (`syntax` names them).
+    fn numbers(&self, from: usize, counts: &[usize], syntax: &str) -> Result<Vec<f64>> {
+        let v = self.items[from..]
+            .iter()
+            .map(|t| match t.parse::<f64>() {
+                Ok(v) if v.is_finite() => Ok(v),
+                Ok(_) => Err(self.bad(format!("\"{t}\" is not a finite number"))),
+                Err(_) => Err(self.bad(format!("\"{t}\" is not a number"))),
+            })
+            .collect::<Result<Vec<f64>>>()?;
+        if counts.contains(&v.len()) {
+            Ok(v)
+        } else {
+            Err(self.bad(format!("{} expects {syntax}, got {} value(s)", self.kind, v.len())))
+        }
+    }
+
+    /// The shape this text names, with its parameters (not yet validated).
+    fn shape(&self) -> Result<Shape> {
+        let shape = match self.kind.as_str() {
+            "circle" => {
+                let v = self.numbers(0, &[3], "cx,cy,r")?;
+                Shape::Circle { center: [v[0], v[1]], radius: v[2] }
+            }
+            "circle3" => {
+                let v = self.numbers(0, &[7], "cx,cy,cz,nx,ny,nz,r")?;
+                Shape::Circle3 { center: [v[0], v[1], v[2]], normal: [v[3], v[4], v[5]], radius: v[6] }
+            }
+            "sphere" => {
+                let v = self.numbers(0, &[4], "cx,cy,cz,r")?;
+                Shape::Sphere { center: [v[0], v[1], v[2]], radius: v[3] }
+            }
+            "cylinder" => {
+                let v = self.numbers(0, &[7], "px,py,pz,ax,ay,az,r")?;
+                Shape::Cylinder { point: [v[0], v[1], v[2]], axis: [v[3], v[4], v[5]], radius: v[6] }
+            }
+            "torus" => {
+                let v = self.numbers(0, &[5, 8], "cx,cy,cz,R,r or cx,cy,cz,ax,ay,az,R,r")?;
+                let (axis, major, minor) =
+                    if v.len() == 5 { ([0.0, 0.0, 1.0], v[3], v[4]) } else { ([v[3], v[4], v[5]], v[6], v[7]) };
+                Shape::Torus { center: [v[0], v[1], v[2]], axis, major, minor }
+            }
+            "plane" => {
+                let v = self.numbers(0, &[6], "px,py,pz,nx,ny,nz")?;
+                Shape::Plane { point: [v[0], v[1], v[2]], normal: [v[3], v[4], v[5]] }
+            }
+            "line" => {
+                let v = self.numbers(0, &[6], "px,py,pz,dx,dy,dz")?;
+                Shape::Line { point: [v[0], v[1], v[2]], direction: [v[3], v[4], v[5]] }
+            }
+            "naca4" => self.naca4()?,
+            kind => {
+                return Err(self.bad(format!(
+                    "unknown kind \"{kind}\" (expected circle, circle3, sphere, cylinder, \
+                     torus, plane, line or naca4)"
+                )))
+            }
+        };
+        Ok(shape)
+    }
+
+    /// A NACA 4-digit aerofoil: the four digits, then chord, x0, y0.
+    fn naca4(&self) -> Result<Shape> {
+        let code = self.items[0];
+        let b = code.as_bytes();
+        if b.len() != 4 || !b.iter().all(u8::is_ascii_digit) {
+            return Err(self.bad(format!("naca4 expects four digits first (e.g. 2412), got \"{code}\"")));
+        }
+        let digits = [b[0] - b'0', b[1] - b'0', b[2] - b'0', b[3] - b'0'];
+        let v = self.numbers(1, &[3], "DDDD,chord,x0,y0 (3 numbers after the digits)")?;
+        Ok(Shape::Naca4 { digits, chord: v[0], origin: [v[1], v[2]] })
     }
 }
 

@@ -125,6 +125,111 @@ impl HighOrderMesh {
         let nv = linear.n_vertices();
         let nc = linear.n_cells();
         let npc_lin = dim + 1;
+        let numbering = Numbering::new(topo, nodes, nv, nc);
+        let local = local_entities(simplex, nodes, numbering.n_interior);
+        let npc = nodes.len();
+        let mut cells = vec![0usize; nc * npc];
+        let mut coords = vec![0.0; numbering.n_nodes * dim];
+        for c in 0..nc {
+            let lv = &linear.cells[c * npc_lin..(c + 1) * npc_lin];
+            let xv: Vec<[f64; 3]> = lv.iter().map(|&v| linear.vertex(v)).collect();
+            for (a, (m, loc)) in nodes.multi.iter().zip(&local).enumerate() {
+                let g = numbering.global(topo, c, lv, m, *loc);
+                cells[c * npc + a] = g;
+                straight_position(dim, &nodes.coords[a], &xv, &mut coords[g * dim..(g + 1) * dim]);
+            }
+        }
+
+        let constraint = classify(linear, topo, &numbering)?;
+        Ok(HighOrderMesh { simplex, order: p, spacing, coords, cells, n_vertices: nv, constraint })
+    }
+}
+
+/// The entity of the reference simplex that a local node lies on, by local
+/// index (interior nodes counted in node order).
+#[derive(Clone, Copy)]
+enum Local {
+    Vertex(usize),
+    Edge(usize),
+    Face(usize),
+    Interior(usize),
+}
+
+/// The entity of every node of `nodes`, computed once for all cells.
+fn local_entities(simplex: Simplex, nodes: &NodeSet, n_interior: usize) -> Vec<Local> {
+    let dim = simplex.dim();
+    let local_edges = simplex.edges();
+    let mut interior_count = 0;
+    let local: Vec<Local> = nodes
+        .multi
+        .iter()
+        .map(|m| {
+            let support: Vec<usize> = (0..=dim).filter(|&i| m[i] > 0).collect();
+            match support.len() {
+                1 => Local::Vertex(support[0]),
+                2 => Local::Edge(
+                    local_edges
+                        .iter()
+                        .position(|e| {
+                            (e[0] == support[0] && e[1] == support[1]) || (e[1] == support[0] && e[0] == support[1])
+                        })
+                        .expect("every vertex pair is an edge of a simplex"),
+                ),
+                3 if dim == 3 => Local::Face(
+                    crate::reference::simplex::TET_FACES
+                        .iter()
+                        .position(|f| {
+                            let mut s = *f;
+                            s.sort_unstable();
+                            s[..] == support[..]
+                        })
+                        .expect("every vertex triple is a face of a tet"),
+                ),
+                _ => {
+                    interior_count += 1;
+                    Local::Interior(interior_count - 1)
+                }
+            }
+        })
+        .collect();
+    debug_assert_eq!(interior_count, n_interior);
+    local
+}
+
+/// Place a node on the straight cell with vertices `xv`: x = Σ λ_i x_i at reference point `xi`.
+fn straight_position(dim: usize, xi: &[f64; 3], xv: &[[f64; 3]], x_out: &mut [f64]) {
+    let lam0 = 1.0 - xi[..dim].iter().sum::<f64>();
+    for d in 0..dim {
+        let mut x = lam0 * xv[0][d];
+        for i in 0..dim {
+            x += xi[i] * xv[i + 1][d];
+        }
+        x_out[d] = x;
+    }
+}
+
+/// Where the global numbering puts the nodes of each kind of entity (see the
+/// module documentation).
+struct Numbering {
+    p: usize,
+    /// Nodes per edge, p − 1.
+    per_edge: usize,
+    /// Nodes per face (3D), (p − 1)(p − 2)/2.
+    per_face: usize,
+    /// Interior nodes per cell.
+    n_interior: usize,
+    edge_base: usize,
+    face_base: usize,
+    interior_base: usize,
+    n_nodes: usize,
+}
+
+impl Numbering {
+    /// The numbering of the order-`nodes.order` mesh over `topo` with `nv` vertices and `nc` cells.
+    fn new(topo: &Topology, nodes: &NodeSet, nv: usize, nc: usize) -> Numbering {
+        let simplex = topo.simplex;
+        let p = nodes.order;
+        let npc_lin = simplex.dim() + 1;
         let per_edge = p.saturating_sub(1);
         let per_face = if p >= 3 { (p - 1) * (p - 2) / 2 } else { 0 };
         let n_face_entities = if simplex == Simplex::Tet { topo.faces.len() } else { 0 };
@@ -135,96 +240,55 @@ impl HighOrderMesh {
         let face_base = edge_base + topo.edges.len() * per_edge;
         let interior_base = face_base + n_face_entities * per_face;
         let n_nodes = interior_base + nc * n_interior;
+        Numbering { p, per_edge, per_face, n_interior, edge_base, face_base, interior_base, n_nodes }
+    }
 
-        // Local node → (entity kind, local entity, position) table, computed once.
-        #[derive(Clone, Copy)]
-        enum Local {
-            Vertex(usize),
-            Edge(usize),
-            Face(usize),
-            Interior(usize),
+    /// Global number of the node with multi-index `m` on local entity `loc` of cell `c` (vertices `lv`).
+    fn global(&self, topo: &Topology, c: usize, lv: &[usize], m: &[usize; 4], loc: Local) -> usize {
+        match loc {
+            Local::Vertex(i) => lv[i],
+            Local::Edge(le) => self.edge_node(topo, c, lv, m, le),
+            Local::Face(lf) => self.face_node(topo, c, lv, m, lf),
+            Local::Interior(k) => self.interior_base + c * self.n_interior + k,
         }
-        let local_edges = simplex.edges();
-        let mut interior_count = 0;
-        let local: Vec<Local> = nodes
-            .multi
-            .iter()
-            .map(|m| {
-                let support: Vec<usize> = (0..=dim).filter(|&i| m[i] > 0).collect();
-                match support.len() {
-                    1 => Local::Vertex(support[0]),
-                    2 => Local::Edge(
-                        local_edges
-                            .iter()
-                            .position(|e| {
-                                (e[0] == support[0] && e[1] == support[1]) || (e[1] == support[0] && e[0] == support[1])
-                            })
-                            .expect("every vertex pair is an edge of a simplex"),
-                    ),
-                    3 if dim == 3 => Local::Face(
-                        crate::reference::simplex::TET_FACES
-                            .iter()
-                            .position(|f| {
-                                let mut s = *f;
-                                s.sort_unstable();
-                                s[..] == support[..]
-                            })
-                            .expect("every vertex triple is a face of a tet"),
-                    ),
-                    _ => {
-                        interior_count += 1;
-                        Local::Interior(interior_count - 1)
-                    }
-                }
-            })
-            .collect();
-        debug_assert_eq!(interior_count, n_interior);
+    }
 
-        let mut cells = vec![0usize; nc * npc];
-        let mut coords = vec![0.0; n_nodes * dim];
+    /// Number an edge node: its place along the global edge from the edge's lower-numbered vertex.
+    fn edge_node(&self, topo: &Topology, c: usize, lv: &[usize], m: &[usize; 4], le: usize) -> usize {
+        let local_edges = topo.simplex.edges();
+        let [i, j] = local_edges[le];
+        let (gi, gj) = (lv[i], lv[j]);
+        let count_at_min = if gi < gj { m[i] } else { m[j] };
+        self.edge_base + topo.cell_edges[c * local_edges.len() + le] * self.per_edge + (self.p - count_at_min - 1)
+    }
+
+    /// Number a face node: its place on the global face from its counts at the face's sorted vertices.
+    fn face_node(&self, topo: &Topology, c: usize, lv: &[usize], m: &[usize; 4], lf: usize) -> usize {
         let tet_faces = crate::reference::simplex::TET_FACES;
-        for c in 0..nc {
-            let lv = &linear.cells[c * npc_lin..(c + 1) * npc_lin];
-            let xv: Vec<[f64; 3]> = lv.iter().map(|&v| linear.vertex(v)).collect();
-            for (a, (m, loc)) in nodes.multi.iter().zip(&local).enumerate() {
-                let g = match *loc {
-                    Local::Vertex(i) => lv[i],
-                    Local::Edge(le) => {
-                        let [i, j] = local_edges[le];
-                        let (gi, gj) = (lv[i], lv[j]);
-                        let count_at_min = if gi < gj { m[i] } else { m[j] };
-                        edge_base + topo.cell_edges[c * local_edges.len() + le] * per_edge + (p - count_at_min - 1)
-                    }
-                    Local::Face(lf) => {
-                        let mut vs: [(usize, usize); 3] = [0, 1, 2].map(|k| {
-                            let i = tet_faces[lf][k];
-                            (lv[i], m[i])
-                        });
-                        vs.sort_unstable();
-                        // counts minus one at the sorted vertices sum to q = p − 3
-                        let (c0, c1) = (vs[0].1 - 1, vs[1].1 - 1);
-                        let q = p - 3;
-                        let offset: usize = (0..c0).map(|j| q - j + 1).sum();
-                        face_base + topo.cell_faces[c * 4 + lf] * per_face + offset + c1
-                    }
-                    Local::Interior(k) => interior_base + c * n_interior + k,
-                };
-                cells[c * npc + a] = g;
-                // Straight position: x = Σ λ_i x_i with λ from the reference node.
-                let xi = nodes.coords[a];
-                let lam0 = 1.0 - xi[..dim].iter().sum::<f64>();
-                for d in 0..dim {
-                    let mut x = lam0 * xv[0][d];
-                    for i in 0..dim {
-                        x += xi[i] * xv[i + 1][d];
-                    }
-                    coords[g * dim + d] = x;
-                }
-            }
-        }
+        let mut vs: [(usize, usize); 3] = [0, 1, 2].map(|k| {
+            let i = tet_faces[lf][k];
+            (lv[i], m[i])
+        });
+        vs.sort_unstable();
+        // counts minus one at the sorted vertices sum to q = p − 3
+        let (c0, c1) = (vs[0].1 - 1, vs[1].1 - 1);
+        let q = self.p - 3;
+        let offset: usize = (0..c0).map(|j| q - j + 1).sum();
+        self.face_base + topo.cell_faces[c * 4 + lf] * self.per_face + offset + c1
+    }
 
-        let constraint = classify(linear, topo, p, n_nodes, edge_base, face_base)?;
-        Ok(HighOrderMesh { simplex, order: p, spacing, coords, cells, n_vertices: nv, constraint })
+    /// Give every node of global edge `e` the constraint `c`.
+    fn constrain_edge(&self, constraint: &mut [NodeConstraint], e: usize, c: NodeConstraint) {
+        for k in 0..self.per_edge {
+            constraint[self.edge_base + e * self.per_edge + k] = c;
+        }
+    }
+
+    /// Give every node of global face `f` the constraint `c`.
+    fn constrain_face(&self, constraint: &mut [NodeConstraint], f: usize, c: NodeConstraint) {
+        for k in 0..self.per_face {
+            constraint[self.face_base + f * self.per_face + k] = c;
+        }
     }
 }
 
@@ -249,24 +313,47 @@ impl Tagging {
     }
 }
 
-fn classify(
-    linear: &LinearMesh,
-    topo: &Topology,
-    p: usize,
-    n_nodes: usize,
-    edge_base: usize,
-    face_base: usize,
-) -> Result<Vec<NodeConstraint>> {
+/// The constraint inside a boundary facet of dimension `dim`: on its entity if tagged, else fixed.
+fn facet_constraint(tag: Option<i32>, dim: usize) -> NodeConstraint {
+    match tag {
+        Some(tag) => NodeConstraint::OnEntity { dim, tag },
+        None => NodeConstraint::Fixed,
+    }
+}
+
+/// The boundary condition of every node of the mesh numbered by `num`.
+fn classify(linear: &LinearMesh, topo: &Topology, num: &Numbering) -> Result<Vec<NodeConstraint>> {
     let dim = linear.dim;
-    let per_edge = p.saturating_sub(1);
-    let per_face = if p >= 3 { (p - 1) * (p - 2) / 2 } else { 0 };
-    let mut constraint = vec![NodeConstraint::Free; n_nodes];
+    let mut constraint = vec![NodeConstraint::Free; num.n_nodes];
     for (v, &b) in topo.boundary_vertex.iter().enumerate() {
         if b {
             constraint[v] = NodeConstraint::Fixed;
         }
     }
-    // Tag of every boundary facet (None = untagged).
+    let edge_lookup = topo.edge_lookup();
+    let facet_tag = facet_tags(linear, topo, &edge_lookup)?;
+
+    if dim == 2 {
+        for &e in &topo.boundary_facets {
+            num.constrain_edge(&mut constraint, e, facet_constraint(facet_tag[e], 1));
+        }
+        return Ok(constraint);
+    }
+
+    // 3D: faces, then edges of boundary faces, then feature edges (which win).
+    let edge_tagging = constrain_boundary_faces(topo, num, &facet_tag, &edge_lookup, &mut constraint);
+    constrain_face_edges(num, &edge_tagging, &mut constraint);
+    constrain_feature_edges(linear, num, &edge_tagging, &edge_lookup, &mut constraint)?;
+    Ok(constraint)
+}
+
+/// Tag of every facet (None = untagged); each tagged facet must be a boundary facet, listed once.
+fn facet_tags(
+    linear: &LinearMesh,
+    topo: &Topology,
+    edge_lookup: &HashMap<[usize; 2], usize>,
+) -> Result<Vec<Option<i32>>> {
+    let dim = linear.dim;
     let n_facets = if dim == 3 { topo.faces.len() } else { topo.edges.len() };
     let mut is_boundary = vec![false; n_facets];
     for &f in &topo.boundary_facets {
@@ -274,7 +361,6 @@ fn classify(
     }
     let mut facet_tag: Vec<Option<i32>> = vec![None; n_facets];
     let mut given = vec![false; n_facets];
-    let edge_lookup = topo.edge_lookup();
     let face_lookup = if dim == 3 { topo.face_lookup() } else { HashMap::new() };
     for (k, f) in linear.facets.chunks_exact(dim).enumerate() {
         let id = if dim == 2 {
@@ -299,47 +385,50 @@ fn classify(
         given[id] = true;
         facet_tag[id] = Some(linear.facet_tags[k]);
     }
+    Ok(facet_tag)
+}
 
-    if dim == 2 {
-        for &e in &topo.boundary_facets {
-            let c = match facet_tag[e] {
-                Some(tag) => NodeConstraint::OnEntity { dim: 1, tag },
-                None => NodeConstraint::Fixed,
-            };
-            for k in 0..per_edge {
-                constraint[edge_base + e * per_edge + k] = c;
-            }
-        }
-        return Ok(constraint);
-    }
-
-    // 3D: faces, then edges of boundary faces, then feature edges (which win).
+/// 3D: constrain the boundary faces' nodes and gather the tags of the faces around each edge.
+fn constrain_boundary_faces(
+    topo: &Topology,
+    num: &Numbering,
+    facet_tag: &[Option<i32>],
+    edge_lookup: &HashMap<[usize; 2], usize>,
+    constraint: &mut [NodeConstraint],
+) -> Vec<Tagging> {
     let mut edge_tagging = vec![Tagging::None; topo.edges.len()];
     for &f in &topo.boundary_facets {
-        let c = match facet_tag[f] {
-            Some(tag) => NodeConstraint::OnEntity { dim: 2, tag },
-            None => NodeConstraint::Fixed,
-        };
-        for k in 0..per_face {
-            constraint[face_base + f * per_face + k] = c;
-        }
+        num.constrain_face(constraint, f, facet_constraint(facet_tag[f], 2));
         let [a, b, cc] = topo.faces[f];
         for e in [[a, b], [b, cc], [a, cc]] {
             let id = edge_lookup[&e];
             edge_tagging[id] = edge_tagging[id].add(facet_tag[f]);
         }
     }
+    edge_tagging
+}
+
+/// 3D: put the nodes of boundary-face edges on the surface when their faces agree, else fix them.
+fn constrain_face_edges(num: &Numbering, edge_tagging: &[Tagging], constraint: &mut [NodeConstraint]) {
     for (e, t) in edge_tagging.iter().enumerate() {
         let c = match *t {
             Tagging::None => continue,
             Tagging::Tag(tag) => NodeConstraint::OnEntity { dim: 2, tag },
             Tagging::Untagged | Tagging::Mixed => NodeConstraint::Fixed,
         };
-        for k in 0..per_edge {
-            constraint[edge_base + e * per_edge + k] = c;
-        }
+        num.constrain_edge(constraint, e, c);
     }
-    let mut edge_given = vec![false; topo.edges.len()];
+}
+
+/// 3D: constrain the feature edges' nodes onto their curves; each must be a boundary edge, listed once.
+fn constrain_feature_edges(
+    linear: &LinearMesh,
+    num: &Numbering,
+    edge_tagging: &[Tagging],
+    edge_lookup: &HashMap<[usize; 2], usize>,
+    constraint: &mut [NodeConstraint],
+) -> Result<()> {
+    let mut edge_given = vec![false; edge_tagging.len()];
     for (k, e) in linear.feature_edges.chunks_exact(2).enumerate() {
         let key = [e[0].min(e[1]), e[0].max(e[1])];
         let id = match edge_lookup.get(&key) {
@@ -350,10 +439,7 @@ fn classify(
             return Err(Error::InvalidInput(format!("feature edge {:?} is tagged twice (edge {k})", e)));
         }
         edge_given[id] = true;
-        for j in 0..per_edge {
-            constraint[edge_base + id * per_edge + j] =
-                NodeConstraint::OnEntity { dim: 1, tag: linear.feature_edge_tags[k] };
-        }
+        num.constrain_edge(constraint, id, NodeConstraint::OnEntity { dim: 1, tag: linear.feature_edge_tags[k] });
     }
-    Ok(constraint)
+    Ok(())
 }

@@ -5,6 +5,8 @@
 //! numbering is deterministic (first appearance while scanning the cells).
 
 use std::collections::HashMap;
+use std::fmt::Debug;
+use std::hash::Hash;
 
 use super::LinearMesh;
 use crate::reference::simplex::{Simplex, TET_FACES};
@@ -48,6 +50,25 @@ pub fn signed_measure(dim: usize, x: &[[f64; 3]]) -> f64 {
 /// overflows, tags count mismatch.
 /// Cells with negative orientation are reoriented by swapping their last two vertices.
 pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
+    check_shape(mesh)?;
+    let dim = mesh.dim;
+    let nv = mesh.n_vertices();
+    let npc = dim + 1;
+    let mut out = mesh.clone();
+    let mut reoriented = 0;
+    let mut seen: HashMap<[usize; 4], usize> = HashMap::with_capacity(mesh.n_cells());
+    for (c, cell) in out.cells.chunks_exact_mut(npc).enumerate() {
+        if orient_cell(mesh, c, cell, &mut seen)? {
+            reoriented += 1;
+        }
+    }
+    check_vertex_refs(&out.facets, dim, "boundary facet", nv)?;
+    check_vertex_refs(&out.feature_edges, 2, "feature edge", nv)?;
+    Ok((out, reoriented))
+}
+
+/// Check the dimension, the array lengths against it and each other, and that coordinates are finite.
+fn check_shape(mesh: &LinearMesh) -> Result<()> {
     let dim = mesh.dim;
     if dim != 2 && dim != 3 {
         return Err(Error::InvalidInput(format!("dimension must be 2 or 3, got {dim}")));
@@ -58,7 +79,6 @@ pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
             mesh.coords.len()
         )));
     }
-    let nv = mesh.n_vertices();
     if let Some(i) = mesh.coords.iter().position(|c| !c.is_finite()) {
         return Err(Error::InvalidInput(format!("vertex {} has a non-finite coordinate", i / dim)));
     }
@@ -87,60 +107,59 @@ pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
     if dim == 2 && !mesh.feature_edges.is_empty() {
         return Err(Error::InvalidInput("feature edges are for 3D meshes; in 2D tag the boundary edges".into()));
     }
-    let mut out = mesh.clone();
-    let mut reoriented = 0;
-    let mut seen: HashMap<[usize; 4], usize> = HashMap::with_capacity(mesh.n_cells());
-    for (c, cell) in out.cells.chunks_exact_mut(npc).enumerate() {
-        for &v in cell.iter() {
-            if v >= nv {
-                return Err(Error::InvalidInput(format!("cell {c} refers to vertex {v}, but there are {nv} vertices")));
-            }
-        }
-        let mut key = [usize::MAX; 4];
-        key[..npc].copy_from_slice(cell);
-        key[..npc].sort_unstable();
-        if key[..npc].windows(2).any(|w| w[0] == w[1]) {
-            return Err(Error::InvalidInput(format!("cell {c} repeats a vertex: {cell:?}")));
-        }
-        if let Some(first) = seen.insert(key, c) {
-            return Err(Error::InvalidInput(format!("cells {first} and {c} have the same vertices")));
-        }
-        let x: Vec<[f64; 3]> = cell.iter().map(|&v| mesh.vertex(v)).collect();
-        let mut h2: f64 = 0.0;
-        for i in 0..npc {
-            for j in i + 1..npc {
-                h2 = h2.max((0..3).map(|k| (x[i][k] - x[j][k]).powi(2)).sum());
-            }
-        }
-        let m = signed_measure(dim, &x);
-        if !(h2.is_finite() && m.is_finite()) {
-            return Err(Error::InvalidInput(format!(
-                "cell {c} is too large: its size or measure overflows double precision (scale the mesh down)"
-            )));
-        }
-        if m.abs() <= 1e-12 * h2.sqrt().powi(dim as i32) {
-            return Err(Error::InvalidInput(format!("cell {c} is degenerate (zero measure)")));
-        }
-        if m < 0.0 {
-            cell.swap(dim - 1, dim);
-            reoriented += 1;
+    Ok(())
+}
+
+/// Check one cell and swap its last two vertices if negatively oriented; returns whether it did.
+fn orient_cell(mesh: &LinearMesh, c: usize, cell: &mut [usize], seen: &mut HashMap<[usize; 4], usize>) -> Result<bool> {
+    let dim = mesh.dim;
+    let nv = mesh.n_vertices();
+    let npc = dim + 1;
+    for &v in cell.iter() {
+        if v >= nv {
+            return Err(Error::InvalidInput(format!("cell {c} refers to vertex {v}, but there are {nv} vertices")));
         }
     }
-    for (k, f) in out.facets.chunks_exact(dim).enumerate() {
-        if let Some(&v) = f.iter().find(|&&v| v >= nv) {
-            return Err(Error::InvalidInput(format!(
-                "boundary facet {k} refers to vertex {v}, but there are {nv} vertices"
-            )));
+    let mut key = [usize::MAX; 4];
+    key[..npc].copy_from_slice(cell);
+    key[..npc].sort_unstable();
+    if key[..npc].windows(2).any(|w| w[0] == w[1]) {
+        return Err(Error::InvalidInput(format!("cell {c} repeats a vertex: {cell:?}")));
+    }
+    if let Some(first) = seen.insert(key, c) {
+        return Err(Error::InvalidInput(format!("cells {first} and {c} have the same vertices")));
+    }
+    let x: Vec<[f64; 3]> = cell.iter().map(|&v| mesh.vertex(v)).collect();
+    let mut h2: f64 = 0.0;
+    for i in 0..npc {
+        for j in i + 1..npc {
+            h2 = h2.max((0..3).map(|k| (x[i][k] - x[j][k]).powi(2)).sum());
         }
     }
-    for (k, e) in out.feature_edges.chunks_exact(2).enumerate() {
-        if let Some(&v) = e.iter().find(|&&v| v >= nv) {
-            return Err(Error::InvalidInput(format!(
-                "feature edge {k} refers to vertex {v}, but there are {nv} vertices"
-            )));
+    let m = signed_measure(dim, &x);
+    if !(h2.is_finite() && m.is_finite()) {
+        return Err(Error::InvalidInput(format!(
+            "cell {c} is too large: its size or measure overflows double precision (scale the mesh down)"
+        )));
+    }
+    if m.abs() <= 1e-12 * h2.sqrt().powi(dim as i32) {
+        return Err(Error::InvalidInput(format!("cell {c} is degenerate (zero measure)")));
+    }
+    if m < 0.0 {
+        cell.swap(dim - 1, dim);
+        return Ok(true);
+    }
+    Ok(false)
+}
+
+/// Check that every vertex of `list` (items of `per` vertices, called `what`) is below `nv`.
+fn check_vertex_refs(list: &[usize], per: usize, what: &str, nv: usize) -> Result<()> {
+    for (k, item) in list.chunks_exact(per).enumerate() {
+        if let Some(&v) = item.iter().find(|&&v| v >= nv) {
+            return Err(Error::InvalidInput(format!("{what} {k} refers to vertex {v}, but there are {nv} vertices")));
         }
     }
-    Ok((out, reoriented))
+    Ok(())
 }
 
 impl Topology {
@@ -159,13 +178,7 @@ impl Topology {
             for le in local_edges {
                 let (a, b) = (cell[le[0]], cell[le[1]]);
                 let key = [a.min(b), a.max(b)];
-                let id = *edge_id.entry(key).or_insert_with(|| {
-                    edges.push(key);
-                    edge_cells.push(0);
-                    edges.len() - 1
-                });
-                edge_cells[id] += 1;
-                cell_edges.push(id);
+                cell_edges.push(intern(&mut edge_id, &mut edges, &mut edge_cells, key));
             }
         }
         let mut faces = Vec::new();
@@ -178,30 +191,12 @@ impl Topology {
                 for lf in &TET_FACES {
                     let mut key = [cell[lf[0]], cell[lf[1]], cell[lf[2]]];
                     key.sort_unstable();
-                    let id = *face_id.entry(key).or_insert_with(|| {
-                        faces.push(key);
-                        face_cells.push(0);
-                        faces.len() - 1
-                    });
-                    face_cells[id] += 1;
-                    cell_faces.push(id);
+                    cell_faces.push(intern(&mut face_id, &mut faces, &mut face_cells, key));
                 }
             }
-            if let Some(f) = face_cells.iter().position(|&n| n > 2) {
-                return Err(Error::InvalidInput(format!(
-                    "the mesh is not manifold: face {:?} is shared by {} cells",
-                    faces[f], face_cells[f]
-                )));
-            }
-            (0..faces.len()).filter(|&f| face_cells[f] == 1).collect()
+            single_cell_entities(&faces, &face_cells, "face")?
         } else {
-            if let Some(e) = edge_cells.iter().position(|&n| n > 2) {
-                return Err(Error::InvalidInput(format!(
-                    "the mesh is not manifold: edge {:?} is shared by {} cells",
-                    edges[e], edge_cells[e]
-                )));
-            }
-            (0..edges.len()).filter(|&e| edge_cells[e] == 1).collect()
+            single_cell_entities(&edges, &edge_cells, "edge")?
         };
         let mut boundary_vertex = vec![false; mesh.n_vertices()];
         for &f in &boundary_facets {
@@ -222,6 +217,28 @@ impl Topology {
     pub fn face_lookup(&self) -> HashMap<[usize; 3], usize> {
         self.faces.iter().enumerate().map(|(i, &f)| (f, i)).collect()
     }
+}
+
+/// The id of `key` (numbered at its first appearance, pushed onto `list`), with one more cell counted on it.
+fn intern<K: Copy + Eq + Hash>(ids: &mut HashMap<K, usize>, list: &mut Vec<K>, cells: &mut Vec<u32>, key: K) -> usize {
+    let id = *ids.entry(key).or_insert_with(|| {
+        list.push(key);
+        cells.push(0);
+        list.len() - 1
+    });
+    cells[id] += 1;
+    id
+}
+
+/// The ids of the entities (`what`: edge or face) with one cell, in order; an error if one has more than two.
+fn single_cell_entities<K: Debug>(list: &[K], cells: &[u32], what: &str) -> Result<Vec<usize>> {
+    if let Some(e) = cells.iter().position(|&n| n > 2) {
+        return Err(Error::InvalidInput(format!(
+            "the mesh is not manifold: {what} {:?} is shared by {} cells",
+            list[e], cells[e]
+        )));
+    }
+    Ok((0..list.len()).filter(|&e| cells[e] == 1).collect())
 }
 
 #[cfg(test)]

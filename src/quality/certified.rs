@@ -187,6 +187,67 @@ fn add(a: &[usize; 4], b: &[usize; 4]) -> [usize; 4] {
     std::array::from_fn(|i| a[i] + b[i])
 }
 
+/// Lagrange → Bernstein of degree p, row-major: the inverse of V_{aα} = B^p_α(node a).
+fn lagrange_to_bernstein(basis: &LagrangeBasis, ap: &[[usize; 4]]) -> Vec<f64> {
+    let n = basis.len();
+    let nodes = basis.nodes();
+    let mut v = Mat::<f64>::zeros(n, n);
+    for a in 0..n {
+        let l = nodes.barycentric(a);
+        for (j, alpha) in ap.iter().enumerate() {
+            v[(a, j)] = bernstein(alpha, &l);
+        }
+    }
+    let inv = v.partial_piv_lu().inverse();
+    (0..n * n).map(|k| inv[(k / n, k % n)]).collect()
+}
+
+/// For each β of degree p − 1 (`a1`) and k = 0..=d: the degree-p index of β + e_k.
+fn raise_table(a1: &[[usize; 4]], rp: &Ranks, d: usize) -> Vec<u32> {
+    let mut raise = vec![0u32; a1.len() * (d + 1)];
+    for (b, beta) in a1.iter().enumerate() {
+        for k in 0..=d {
+            let mut e = [0; 4];
+            e[k] = 1;
+            raise[b * (d + 1) + k] = rp.of(&add(beta, &e));
+        }
+    }
+    raise
+}
+
+/// For each edge (k, l), k < l: the lines of the degree-q indices along it.
+fn edge_lines(alphas: &[[usize; 4]], rq: &Ranks, d: usize) -> Vec<EdgeLines> {
+    let mut edges = Vec::new();
+    for k in 0..=d {
+        for l in k + 1..=d {
+            let mut e = EdgeLines { k, l, line_index: Vec::new(), line_start: Vec::new() };
+            for a in alphas.iter().filter(|a| a[l] == 0) {
+                e.line_start.push(e.line_index.len());
+                for i in 0..=a[k] {
+                    let mut b = *a;
+                    b[k] -= i;
+                    b[l] += i;
+                    e.line_index.push(rq.of(&b));
+                }
+            }
+            edges.push(e);
+        }
+    }
+    edges
+}
+
+/// B^q_α at the equispaced lattice of order min(q, PROBE_ORDER), one row per lattice point.
+fn probe_table(alphas: &[[usize; 4]], d: usize, q: usize) -> Vec<f64> {
+    let r = q.clamp(1, PROBE_ORDER);
+    multi_indices(d + 1, r)
+        .iter()
+        .flat_map(|m| {
+            let l: [f64; 4] = std::array::from_fn(|i| m[i] as f64 / r as f64);
+            alphas.iter().map(move |a| bernstein(a, &l))
+        })
+        .collect()
+}
+
 impl JacobianBernstein {
     /// The expansion for elements of `basis` (any order and node set).
     pub fn new(basis: &LagrangeBasis) -> JacobianBernstein {
@@ -198,29 +259,12 @@ impl JacobianBernstein {
 
         // 1. Lagrange → Bernstein of degree p: the inverse of V_{aα} = B^p_α(node a).
         let ap = multi_indices(d + 1, p);
-        let nodes = basis.nodes();
-        let mut v = Mat::<f64>::zeros(n, n);
-        for a in 0..n {
-            let l = nodes.barycentric(a);
-            for (j, alpha) in ap.iter().enumerate() {
-                v[(a, j)] = bernstein(alpha, &l);
-            }
-        }
-        let inv = v.partial_piv_lu().inverse();
-        let to_bernstein = (0..n * n).map(|k| inv[(k / n, k % n)]).collect();
+        let to_bernstein = lagrange_to_bernstein(basis, &ap);
 
         // 2. Derivative tables.
         let rp = Ranks::new(&ap, p);
         let a1 = multi_indices(d + 1, p - 1);
-        let n1 = a1.len();
-        let mut raise = vec![0u32; n1 * (d + 1)];
-        for (b, beta) in a1.iter().enumerate() {
-            for k in 0..=d {
-                let mut e = [0; 4];
-                e[k] = 1;
-                raise[b * (d + 1) + k] = rp.of(&add(beta, &e));
-            }
-        }
+        let raise = raise_table(&a1, &rp, d);
         let deriv_scale = a1.iter().map(|b| p as f64 * multinomial(b)).collect();
 
         // 3. Product tables.
@@ -241,30 +285,8 @@ impl JacobianBernstein {
                 rq.of(&a) as usize
             })
             .collect();
-        let mut edges = Vec::new();
-        for k in 0..=d {
-            for l in k + 1..=d {
-                let mut e = EdgeLines { k, l, line_index: Vec::new(), line_start: Vec::new() };
-                for a in alphas.iter().filter(|a| a[l] == 0) {
-                    e.line_start.push(e.line_index.len());
-                    for i in 0..=a[k] {
-                        let mut b = *a;
-                        b[k] -= i;
-                        b[l] += i;
-                        e.line_index.push(rq.of(&b));
-                    }
-                }
-                edges.push(e);
-            }
-        }
-        let r = q.clamp(1, PROBE_ORDER);
-        let probe = multi_indices(d + 1, r)
-            .iter()
-            .flat_map(|m| {
-                let l: [f64; 4] = std::array::from_fn(|i| m[i] as f64 / r as f64);
-                alphas.iter().map(move |a| bernstein(a, &l))
-            })
-            .collect();
+        let edges = edge_lines(&alphas, &rq, d);
+        let probe = probe_table(&alphas, d, q);
         JacobianBernstein {
             dim: d,
             to_bernstein,

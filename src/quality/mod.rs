@@ -107,76 +107,119 @@ pub fn element_quality(cache: &ElementCache, xe: &[f64], xs: &[f64], fibre: Opti
         })
         .collect();
     let (jx_inv, _) = linalg::inverse(dim, &mapping::affine_jacobian(dim, &xv));
-    let (mut i1min, mut i1max) = (f64::INFINITY, 0.0f64);
-    let (mut i2min, mut i2max) = (f64::INFINITY, 0.0f64);
-    let (mut jmin, mut jmax, mut jabsmax) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
-    let (mut i4min, mut i4max, mut i5min, mut i5max) = (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64);
+    let mut ext = Extremes::new();
     for q in 0..cache.n_points() {
         let dxdxi = mapping::jacobian(dim, xe, cache.grads_at(q));
         let f = linalg::matmul(dim, &dxdxi, &jx_inv);
-        let h = linalg::cofactor(dim, &f);
-        let (mut i1, mut i2) = (0.0, 0.0);
-        for i in 0..dim {
-            for j in 0..dim {
-                i1 += f[i][j] * f[i][j];
-                i2 += h[i][j] * h[i][j];
-            }
-        }
+        let (i1, i2) = strain_invariants(dim, &f);
         // Q3 from det ∂x/∂ξ itself: the scaled Jacobian is a ratio, so the
         // affine factor of X cancels, and it must not set the sign: when X is
         // taken through the curved vertices, an interior vertex moved by the
         // curving (one that a removed boundary cap added) can leave that
         // straight tet inverted under an element that is valid everywhere.
         let j = linalg::det(dim, &dxdxi);
-        if let Some(n) = fibre {
-            // I4 = FN·FN, I5 = FᵀFN·FᵀFN (2D: in-plane part of N; F33 = 1).
-            let mut fn_ = [0.0; 3];
-            for i in 0..dim {
-                fn_[i] = (0..dim).map(|k| f[i][k] * n[k]).sum();
-            }
-            if dim == 2 {
-                fn_[2] = n[2];
-            }
-            let i4: f64 = fn_.iter().map(|v| v * v).sum();
-            let mut ftfn = [0.0; 3];
-            for i in 0..dim {
-                ftfn[i] = (0..dim).map(|k| f[k][i] * fn_[k]).sum();
-            }
-            if dim == 2 {
-                ftfn[2] = fn_[2];
-            }
-            let i5: f64 = ftfn.iter().map(|v| v * v).sum();
-            i4min = i4min.min(i4);
-            i4max = i4max.max(i4);
-            i5min = i5min.min(i5);
-            i5max = i5max.max(i5);
+        ext.add(i1, i2, j, fibre.map(|n| fibre_invariants(dim, &f, n)));
+    }
+    ext.quality(fibre.is_some())
+}
+
+/// Least and greatest values of the invariants over the sample points of
+/// one element.
+#[derive(Clone, Copy)]
+struct Extremes {
+    i1min: f64,
+    i1max: f64,
+    i2min: f64,
+    i2max: f64,
+    jmin: f64,
+    jmax: f64,
+    jabsmax: f64,
+    i4min: f64,
+    i4max: f64,
+    i5min: f64,
+    i5max: f64,
+}
+
+impl Extremes {
+    /// Before any sample point.
+    fn new() -> Extremes {
+        let (i1min, i1max) = (f64::INFINITY, 0.0f64);
+        let (i2min, i2max) = (f64::INFINITY, 0.0f64);
+        let (jmin, jmax, jabsmax) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
+        let (i4min, i4max, i5min, i5max) = (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64);
+        Extremes { i1min, i1max, i2min, i2max, jmin, jmax, jabsmax, i4min, i4max, i5min, i5max }
+    }
+
+    /// Take in the invariants I1, I2, J (and I4, I5 with a fibre) of one sample point.
+    fn add(&mut self, i1: f64, i2: f64, j: f64, fibre: Option<(f64, f64)>) {
+        if let Some((i4, i5)) = fibre {
+            self.i4min = self.i4min.min(i4);
+            self.i4max = self.i4max.max(i4);
+            self.i5min = self.i5min.min(i5);
+            self.i5max = self.i5max.max(i5);
         }
-        i1min = i1min.min(i1);
-        i1max = i1max.max(i1);
-        i2min = i2min.min(i2);
-        i2max = i2max.max(i2);
-        jmin = jmin.min(j);
-        jmax = jmax.max(j);
-        jabsmax = jabsmax.max(j.abs());
+        self.i1min = self.i1min.min(i1);
+        self.i1max = self.i1max.max(i1);
+        self.i2min = self.i2min.min(i2);
+        self.i2max = self.i2max.max(i2);
+        self.jmin = self.jmin.min(j);
+        self.jmax = self.jmax.max(j);
+        self.jabsmax = self.jabsmax.max(j.abs());
     }
-    let q3 = if jmin > 0.0 {
-        jmin / jmax
-    } else if jabsmax > 0.0 {
-        jmin / jabsmax
-    } else {
-        -1.0
-    };
-    let ratio = |lo: f64, hi: f64| if hi > 0.0 { (lo / hi).sqrt() } else { 0.0 };
-    let (q4, q5) = match fibre {
-        Some(_) => (ratio(i4min, i4max), ratio(i5min, i5max)),
-        None => (f64::NAN, f64::NAN),
-    };
-    let q = ElementQuality { q1: ratio(i1min, i1max), q2: ratio(i2min, i2max), q3, q4, q5 };
-    if q.q1.is_nan() || q.q2.is_nan() || q.q3.is_nan() {
-        // Non-finite geometry: report as invalid rather than propagate NaN.
-        return ElementQuality { q1: 0.0, q2: 0.0, q3: -1.0, q4, q5 };
+
+    /// Q1..Q5 from the extremes (Q4, Q5 NaN without a fibre; invalid if the geometry is not finite).
+    fn quality(&self, with_fibre: bool) -> ElementQuality {
+        let Extremes { i1min, i1max, i2min, i2max, jmin, jmax, jabsmax, i4min, i4max, i5min, i5max } = *self;
+        let q3 = if jmin > 0.0 {
+            jmin / jmax
+        } else if jabsmax > 0.0 {
+            jmin / jabsmax
+        } else {
+            -1.0
+        };
+        let ratio = |lo: f64, hi: f64| if hi > 0.0 { (lo / hi).sqrt() } else { 0.0 };
+        let (q4, q5) = if with_fibre { (ratio(i4min, i4max), ratio(i5min, i5max)) } else { (f64::NAN, f64::NAN) };
+        let q = ElementQuality { q1: ratio(i1min, i1max), q2: ratio(i2min, i2max), q3, q4, q5 };
+        if q.q1.is_nan() || q.q2.is_nan() || q.q3.is_nan() {
+            // Non-finite geometry: report as invalid rather than propagate NaN.
+            return ElementQuality { q1: 0.0, q2: 0.0, q3: -1.0, q4, q5 };
+        }
+        q
     }
-    q
+}
+
+/// I1 = F:F and I2 = H:H (H = cof F) of the `dim` × `dim` gradient `f`.
+fn strain_invariants(dim: usize, f: &linalg::Mat3) -> (f64, f64) {
+    let h = linalg::cofactor(dim, f);
+    let (mut i1, mut i2) = (0.0, 0.0);
+    for i in 0..dim {
+        for j in 0..dim {
+            i1 += f[i][j] * f[i][j];
+            i2 += h[i][j] * h[i][j];
+        }
+    }
+    (i1, i2)
+}
+
+/// I4 = FN·FN and I5 = FᵀFN·FᵀFN for the unit fibre N (2D: in-plane part of N; F33 = 1).
+fn fibre_invariants(dim: usize, f: &linalg::Mat3, n: &[f64; 3]) -> (f64, f64) {
+    let mut fn_ = [0.0; 3];
+    for i in 0..dim {
+        fn_[i] = (0..dim).map(|k| f[i][k] * n[k]).sum();
+    }
+    if dim == 2 {
+        fn_[2] = n[2];
+    }
+    let i4: f64 = fn_.iter().map(|v| v * v).sum();
+    let mut ftfn = [0.0; 3];
+    for i in 0..dim {
+        ftfn[i] = (0..dim).map(|k| f[k][i] * fn_[k]).sum();
+    }
+    if dim == 2 {
+        ftfn[2] = fn_[2];
+    }
+    let i5: f64 = ftfn.iter().map(|v| v * v).sum();
+    (i4, i5)
 }
 
 /// Quality of every cell of a mesh given its coordinates and connectivity,

@@ -227,6 +227,7 @@ impl IterativeSolver {
         })
     }
 
+    /// One PCG attempt with the preconditioner built in `mode`.
     fn try_pcg_solve(
         &mut self,
         pattern: &SymmetricCsc,
@@ -246,22 +247,10 @@ impl IterativeSolver {
             }
             _ => &exact,
         };
-        // A diagonal block that is not positive definite makes the matrix indefinite.
-        let jacobi = BlockJacobi::try_new(pattern, values, self.block).map_err(|error| Breakdown {
-            reason: FallbackReason::MatrixNotPositive,
-            iterations: 0,
-            error,
-        })?;
-        let params = self.params.smoother;
-        let smoother = match mode {
-            Mode::Fast => Chebyshev::try_with_jacobi(fine, jacobi, params, start),
-            Mode::Safe => Chebyshev::try_safe_with_jacobi(&self.op, values, jacobi, params),
-        }
-        .map_err(Breakdown::setup)?;
+        let jacobi = diagonal_blocks(pattern, values, self.block)?;
+        let smoother = mode.smoother(fine, &self.op, values, jacobi, self.params.smoother, start)?;
         if let Some(c) = &mut self.coarse {
-            if mode == Mode::Safe || !(self.params.reuse_coarse && c.is_ready()) {
-                c.try_update_with(&self.op, values, mode == Mode::Safe).map_err(Breakdown::setup)?;
-            }
+            mode.update_coarse(c, &self.op, values, self.params.reuse_coarse)?;
         }
         // A warm-started estimate can miss a mode that the new matrix has
         // and the previous one had not (a nearly degenerate cell): a slow
@@ -272,18 +261,7 @@ impl IterativeSolver {
         };
         let steps = self.params.smoother.power_iterations;
         let mut fresh = None;
-        let mut check = |it: usize| {
-            if Some(it) != checkpoint {
-                return true;
-            }
-            match smoother.cold_estimate(fine, steps) {
-                Ok(cold) if cold > UNDERESTIMATE_FACTOR * smoother.estimate() => {
-                    fresh = Some(cold);
-                    false
-                }
-                _ => true,
-            }
-        };
+        let mut check = eigenvalue_check(checkpoint, &smoother, fine, steps, &mut fresh);
         let op = &self.op;
         let mut pre = VCycle::new(fine, &smoother, self.coarse.as_mut());
         let it = pcg(
@@ -296,25 +274,102 @@ impl IterativeSolver {
             &mut check,
         );
         drop(pre);
+        drop(check);
         let estimate = smoother.estimate();
         self.power = Some(smoother.power_vector());
-        match (it, fresh) {
-            (Err(PcgFailure::Stopped { iteration }), Some(cold)) => Err(Breakdown {
-                reason: FallbackReason::EigenvalueUnderestimated,
-                iterations: iteration,
-                error: Error::Solver(format!(
-                    "PCG: {iteration} iterations, and the smoother's warm-started estimate of λ_max(D⁻¹A), \
-                     {estimate:.3}, is below a fresh one, {cold:.3}"
-                )),
-            }),
-            (Ok(it), _) => {
-                if mode == Mode::Fast {
-                    self.last_iterations = Some(it);
-                }
-                Ok(it)
-            }
-            (Err(f), _) => Err(Breakdown::from_pcg(f)),
+        let outcome = pcg_outcome(it, fresh, estimate);
+        if let (Ok(it), Mode::Fast) = (&outcome, mode) {
+            self.last_iterations = Some(*it);
         }
+        outcome
+    }
+}
+
+/// The smoother's inverted diagonal blocks; one not positive definite makes the matrix indefinite.
+fn diagonal_blocks(
+    pattern: &SymmetricCsc,
+    values: &[f64],
+    block: usize,
+) -> std::result::Result<BlockJacobi, Breakdown> {
+    BlockJacobi::try_new(pattern, values, block).map_err(|error| Breakdown {
+        reason: FallbackReason::MatrixNotPositive,
+        iterations: 0,
+        error,
+    })
+}
+
+impl Mode {
+    /// Rebuild the coarse levels `c` for `values` unless the fast mode may `reuse` ready ones.
+    fn update_coarse(
+        self,
+        c: &mut Hierarchy,
+        op: &SymmetricOperator,
+        values: &[f64],
+        reuse: bool,
+    ) -> std::result::Result<(), Breakdown> {
+        if self == Mode::Safe || !(reuse && c.is_ready()) {
+            c.try_update_with(op, values, self == Mode::Safe).map_err(Breakdown::setup)?;
+        }
+        Ok(())
+    }
+
+    /// The fine-level Chebyshev smoother of this mode for the matrix `values`.
+    fn smoother(
+        self,
+        fine: &dyn Operator,
+        op: &SymmetricOperator,
+        values: &[f64],
+        jacobi: BlockJacobi,
+        params: ChebyshevParams,
+        start: Option<Vec<f64>>,
+    ) -> std::result::Result<Chebyshev, Breakdown> {
+        match self {
+            Mode::Fast => Chebyshev::try_with_jacobi(fine, jacobi, params, start),
+            Mode::Safe => Chebyshev::try_safe_with_jacobi(op, values, jacobi, params),
+        }
+        .map_err(Breakdown::setup)
+    }
+}
+
+/// PCG's check: at `checkpoint`, stop if a fresh λ_max estimate beats the warm one (kept in `fresh`).
+fn eigenvalue_check<'a>(
+    checkpoint: Option<usize>,
+    smoother: &'a Chebyshev,
+    fine: &'a dyn Operator,
+    steps: usize,
+    fresh: &'a mut Option<f64>,
+) -> impl FnMut(usize) -> bool + 'a {
+    move |it: usize| {
+        if Some(it) != checkpoint {
+            return true;
+        }
+        match smoother.cold_estimate(fine, steps) {
+            Ok(cold) if cold > UNDERESTIMATE_FACTOR * smoother.estimate() => {
+                *fresh = Some(cold);
+                false
+            }
+            _ => true,
+        }
+    }
+}
+
+/// The iterations of a PCG run, or its breakdown (λ_max underestimated if stopped with `fresh`).
+fn pcg_outcome(
+    it: std::result::Result<usize, PcgFailure>,
+    fresh: Option<f64>,
+    estimate: f64,
+) -> std::result::Result<usize, Breakdown> {
+    match (it, fresh) {
+        (Err(PcgFailure::Stopped { iteration }), Some(cold)) => Err(Breakdown {
+            reason: FallbackReason::EigenvalueUnderestimated,
+            iterations: iteration,
+            error: Error::Solver(format!(
+                "PCG: {iteration} iterations, and the smoother's warm-started estimate of λ_max(D⁻¹A), \
+                 {estimate:.3}, is below a fresh one, {cold:.3}"
+            )),
+        }),
+        (Ok(it), _) => Ok(it),
+        (Err(f), _) => Err(Breakdown::from_pcg(f)),
     }
 }
 
