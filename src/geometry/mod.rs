@@ -20,9 +20,11 @@ pub trait Projector: Sync {
 }
 
 pub mod naca;
+pub mod placement;
 pub mod shapes;
 
 pub use naca::Naca4;
+pub use placement::{place_boundary_nodes, BoundaryPlacement};
 pub use shapes::{Shape, ShapeProjector};
 
 /// The bulge of each facet of `mesh` ([`crate::mesh::repair::bulge`]): its

@@ -1,6 +1,7 @@
 //! Constitutive models: pointwise strain energy Ψ, Cauchy stress σ and
 //! spatial tangent c of the deformation gradient F (paper sections 2 and 4,
-//! Table 2). No mesh here.
+//! Table 2). No mesh here, but for the default fibre directions of a mesh's
+//! cells (`fibres.rs`).
 //!
 //! Every model is calibrated from Young's modulus E and Poisson's ratio ν so
 //! that its tangent at F = I equals the linear tensor
@@ -28,6 +29,7 @@
 //! assert!(sigma[0][0] > 0.0 && c[0][0][0][0] > 0.0);
 //! ```
 
+mod fibres;
 mod invariants;
 mod linear;
 mod mooney_rivlin;
@@ -40,6 +42,7 @@ mod transversely_isotropic;
 #[cfg(test)]
 mod testing;
 
+pub use fibres::{checked_fibres, default_fibres};
 pub use invariants::{anisotropic_invariants, Invariants};
 pub use mooney_rivlin::MooneyRivlin;
 pub use neo_hookean::NeoHookean;

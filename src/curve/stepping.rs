@@ -1,0 +1,879 @@
+//! Load stepping: the increments of the elastic stage, adaptive splitting
+//! of the rejected ones, and the predictor of each increment's solution.
+
+use std::time::Instant;
+
+use super::{Stage, Timings};
+use crate::assembly::{assemble_into, multigrid_levels, Assembled, AssemblyPlan, DofMap, ElementKernel};
+use crate::mesh::HighOrderMesh;
+use crate::quality;
+use crate::reference::{LagrangeBasis, NodeSet};
+use crate::solver::{
+    DirectOrdering, DirectSolver, ExternalAdapter, FallbackReason, IterativeParams, IterativeSolver, LinearSolver,
+    SolveStats, SolvedBy, SolverChoice, SymmetricCsc, AUTO_DIRECT_MAX_DOFS,
+};
+use crate::{Error, Result};
+
+/// How the load increments are driven (paper Table 1).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stepping {
+    /// Number of load increments n ≥ 1.
+    pub increments: usize,
+    /// Put the internal force −R(x_n) on the right-hand side (IIL, CIL, Newton).
+    pub residual: bool,
+    /// Newton–Raphson to ‖R_f‖/‖R_0‖ < tolerance in at most max_iterations (NONLINEAR).
+    pub newton: Option<(f64, usize)>,
+    pub solver: SolverChoice,
+    /// Fill-reducing ordering of the direct solver.
+    pub direct_ordering: DirectOrdering,
+    /// Adaptive load stepping: step back and halve an increment that makes a
+    /// cell invalid (certified check, [`quality::ValidityCheck`]) or whose
+    /// assembly or Newton iteration fails.
+    pub adaptive: bool,
+    /// Adaptive load stepping: at most this many halvings, so the smallest
+    /// step is 1/(n·2^max_splits) of the load.
+    pub max_splits: usize,
+    /// Condense the cell-interior nodes out of the linear systems.
+    pub condense: bool,
+    /// At the limit of adaptive stepping, stop at the last accepted geometry
+    /// and report where ([`IncrementsReport::stopped`]) instead of failing.
+    pub finish: bool,
+}
+
+impl Stepping {
+    /// `increments` equal ILE steps, built-in solver, adaptive stepping on
+    /// with [`DEFAULT_MAX_SPLITS`].
+    pub fn new(increments: usize) -> Stepping {
+        Stepping {
+            increments,
+            residual: false,
+            newton: None,
+            solver: SolverChoice::Auto,
+            direct_ordering: DirectOrdering::Auto,
+            adaptive: true,
+            max_splits: DEFAULT_MAX_SPLITS,
+            condense: false,
+            finish: false,
+        }
+    }
+}
+
+/// Why adaptive load stepping rejected an increment.
+#[non_exhaustive]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StepBackReason {
+    /// An assembly on the new geometry, or the sampled check after an
+    /// increment, met det J ≤ 0 at a quadrature point.
+    SampledInvalid,
+    /// The certified check found a cell with det J ≤ 0 somewhere after the increment.
+    CertifiedInvalid,
+    /// Newton–Raphson did not converge, or its residual was not finite.
+    NewtonFailed,
+    /// An earlier increment, checked only at sample points, had inverted a
+    /// cell between them (found by the certified check, or by the assembly
+    /// at the start of the next increment): the run went back to load 0 and
+    /// certified every increment from there.
+    Restarted,
+}
+
+impl StepBackReason {
+    pub fn name(self) -> &'static str {
+        match self {
+            StepBackReason::SampledInvalid => "sampled-invalid",
+            StepBackReason::CertifiedInvalid => "certified-invalid",
+            StepBackReason::NewtonFailed => "newton-failed",
+            StepBackReason::Restarted => "restarted",
+        }
+    }
+}
+
+/// One increment that adaptive load stepping rejected and split.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StepBack {
+    /// Load fraction at the start of the rejected increment.
+    pub load: f64,
+    /// Its size, as a fraction of the whole load.
+    pub step: f64,
+    pub reason: StepBackReason,
+    /// The offending cell, when known.
+    pub cell: Option<usize>,
+}
+
+/// What [`solve_increments`] reports.
+#[derive(Debug, Clone, Default)]
+pub struct IncrementsReport {
+    /// Unknowns: the free degrees of freedom.
+    pub n_free: usize,
+    /// Unknowns of the linear systems: `n_free` less the condensed ones.
+    pub n_system: usize,
+    /// NONLINEAR: relative residual history of each attempted increment.
+    pub newton_history: Vec<Vec<f64>>,
+    pub linear_solver: &'static str,
+    /// Krylov iterations of each linear solve (rejected increments included).
+    pub solver_iterations: Vec<usize>,
+    /// The solver that produced each solve's solution.
+    pub solver_per_solve: Vec<SolvedBy>,
+    /// Per solve, why the first choice of solver did not produce it.
+    pub fallback_per_solve: Vec<Option<FallbackReason>>,
+    /// Solves that fell back.
+    pub fallbacks: usize,
+    /// Load fraction reached by each accepted increment (the last is 1); its
+    /// length is the number of increments taken.
+    pub load_fractions: Vec<f64>,
+    /// The increments rejected by adaptive load stepping, in order.
+    pub step_backs: Vec<StepBack>,
+    /// Certified bounds of every cell on the geometry the run ended with,
+    /// when its last check was the certified one.
+    pub certified: Option<Vec<quality::CertifiedJacobian>>,
+    /// With [`Stepping::finish`]: where adaptive stepping gave up; the mesh
+    /// is left at the last accepted geometry.
+    pub stopped: Option<ElasticStop>,
+}
+
+impl IncrementsReport {
+    /// An empty report for the unknowns of `dofs`.
+    fn new(dofs: &DofMap) -> IncrementsReport {
+        IncrementsReport { n_free: dofs.n_free, n_system: dofs.n_system, ..Default::default() }
+    }
+
+    /// Append the solves of `more`, a further run of [`solve_increments`].
+    pub(super) fn append_solves(&mut self, more: IncrementsReport) {
+        self.solver_iterations.extend(more.solver_iterations);
+        self.solver_per_solve.extend(more.solver_per_solve);
+        self.fallback_per_solve.extend(more.fallback_per_solve);
+        self.fallbacks += more.fallbacks;
+    }
+
+    /// Record what one linear solve reports.
+    fn record_solve(&mut self, stats: &SolveStats) {
+        self.solver_iterations.push(stats.iterations);
+        self.solver_per_solve.push(stats.solved_by);
+        self.fallback_per_solve.push(stats.fallback);
+        self.fallbacks += usize::from(stats.fallback.is_some());
+    }
+
+    /// Size of each accepted increment, as a fraction of the whole load.
+    pub fn steps(&self) -> Vec<f64> {
+        let mut prev = 0.0;
+        self.load_fractions
+            .iter()
+            .map(|&l| {
+                let h = l - prev;
+                prev = l;
+                h
+            })
+            .collect()
+    }
+}
+
+/// The point where adaptive load stepping gave up.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ElasticStop {
+    /// Load fraction reached (the start of the increment that failed).
+    pub load: f64,
+    pub reason: StepBackReason,
+    /// The cell that could not be kept valid, when known.
+    pub cell: Option<usize>,
+    /// What went wrong, in words.
+    pub detail: String,
+    /// The optimisation from the stopped geometry (plus the rest of the load
+    /// in one linear solve) left cells invalid, and the mesh returned is the
+    /// optimisation of the whole load in one linear solve on the straight
+    /// mesh instead, which left fewer.
+    pub restarted: bool,
+}
+
+/// The solver `choice` asks for, set up for this mesh and pattern. `Auto`:
+/// direct in 2D and up to [`AUTO_DIRECT_MAX_DOFS`] unknowns in 3D, iterative
+/// above. The direct solver orders with `ordering`.
+fn make_solver(
+    choice: SolverChoice,
+    ordering: DirectOrdering,
+    mesh: &HighOrderMesh,
+    dofs: &DofMap,
+    pattern: &SymmetricCsc,
+) -> Result<Box<dyn LinearSolver>> {
+    let iterative = match choice {
+        SolverChoice::External(host) => return Ok(Box::new(ExternalAdapter::new(host, pattern))),
+        SolverChoice::Direct => false,
+        SolverChoice::Iterative => true,
+        SolverChoice::Auto => mesh.dim() == 3 && pattern.n > AUTO_DIRECT_MAX_DOFS,
+    };
+    if !iterative {
+        return Ok(Box::new(DirectSolver::try_new_with(pattern, ordering)?));
+    }
+    // The free dofs of a node are consecutive: nodal blocks for the smoother.
+    let levels = multigrid_levels(mesh, dofs);
+    Ok(Box::new(IterativeSolver::try_new(pattern, mesh.dim(), levels, IterativeParams::default())?))
+}
+
+/// Move `mesh` by the prescribed boundary displacement `ubar` (one value per
+/// dof; only the boundary entries are used) in `stepping.increments` steps:
+/// each step assembles the kernel's matrix on the current geometry Ω_n and
+/// solves K_ff u_f = −K_fd ū h − R_f(x_n) (the residual only with
+/// `residual`) for a step h of the load (1/n unless split), then updates
+/// x_{n+1} = x_n + u; with `newton`, it then iterates K Δx = −R until
+/// convergence. Each solve starts from the secant extrapolation of the two
+/// previous increments' solutions ([`Predictor`]).
+///
+/// With `stepping.adaptive`, an increment is rejected when its Newton
+/// iteration fails (or meets det J ≤ 0), or when it leaves a cell invalid
+/// that was valid at its start ([`quality::ValidityCheck`]); the geometry is
+/// then restored and the step halved, at most `max_splits` times per nominal
+/// increment (the full step comes back at the next nominal increment). The
+/// check after an increment is det J at the quadrature points of degree 2p
+/// (cheap: about 1–2 % of an increment at p = 4 in 3D), and the certified one
+/// (Bernstein bounds, det J > 0 everywhere) after the last increment and
+/// after every increment once the run has stepped back. If the certified
+/// check finds a cell that was already inverted before the increment, or an
+/// assembly fails on the geometry an increment starts from, an earlier
+/// increment inverted it between the sample points: the run starts again
+/// from load 0, certifying every increment ([`StepBackReason::Restarted`]).
+/// At the limit, or on a failure without `adaptive`, the run fails with
+/// [`Error::InvalidElement`] or [`Error::Solver`], and `mesh` is left as it
+/// was on entry.
+pub fn solve_increments<K: ElementKernel>(
+    mesh: &mut HighOrderMesh,
+    kernel: &K,
+    ubar: &[f64],
+    stepping: Stepping,
+    timings: &mut Timings,
+    tick: &mut dyn FnMut(Stage, usize, usize) -> Result<()>,
+) -> Result<IncrementsReport> {
+    let increments = stepping.increments;
+    if increments == 0 {
+        return Err(Error::InvalidInput("the number of increments must be at least 1".into()));
+    }
+    if stepping.adaptive && stepping.max_splits > MAX_SPLITS {
+        return Err(Error::InvalidInput(format!(
+            "max_splits must be at most {MAX_SPLITS}, got {}",
+            stepping.max_splits
+        )));
+    }
+    let dofs = if stepping.condense { DofMap::condensed(mesh) } else { DofMap::new(mesh) };
+    if dofs.n_free == 0 || ubar.iter().all(|&u| u == 0.0) {
+        for (x, u) in mesh.coords.iter_mut().zip(ubar) {
+            *x += u;
+        }
+        let mut out = IncrementsReport::new(&dofs);
+        out.load_fractions.push(1.0);
+        return Ok(out);
+    }
+    let start = mesh.coords.clone();
+    let result = step_through(mesh, kernel, ubar, &stepping, &dofs, timings, tick);
+    if result.is_err() {
+        mesh.coords.copy_from_slice(&start);
+    }
+    result
+}
+
+/// Largest `max_splits` accepted: the smallest step is then 2⁻³⁰ of a nominal one.
+pub const MAX_SPLITS: usize = 30;
+
+/// Default `max_splits` of adaptive load stepping: the smallest step is 1/64 of a nominal one.
+pub const DEFAULT_MAX_SPLITS: usize = 6;
+
+/// A rejected increment: why, where, and the message of the error it becomes
+/// when it cannot be split any more.
+enum Failure {
+    Retry {
+        reason: StepBackReason,
+        cell: Option<usize>,
+        detail: String,
+    },
+    /// The assembly failed on the geometry at the start of the increment.
+    AtStart(String),
+    Fatal(Error),
+}
+
+impl From<Error> for Failure {
+    fn from(e: Error) -> Failure {
+        match e {
+            Error::InvalidElement(detail) => {
+                Failure::Retry { reason: StepBackReason::SampledInvalid, cell: None, detail }
+            }
+            e => Failure::Fatal(e),
+        }
+    }
+}
+
+/// The increment loop of [`solve_increments`]. The load is counted in ticks
+/// of 1/(n·2^splits), so split steps add up exactly to the nominal ones.
+fn step_through<K: ElementKernel>(
+    mesh: &mut HighOrderMesh,
+    kernel: &K,
+    ubar: &[f64],
+    stepping: &Stepping,
+    dofs: &DofMap,
+    timings: &mut Timings,
+    tick: &mut dyn FnMut(Stage, usize, usize) -> Result<()>,
+) -> Result<IncrementsReport> {
+    let mut out = IncrementsReport::new(dofs);
+    let mut ctx = IncrementContext::new(mesh, kernel, stepping, dofs, timings)?;
+    out.linear_solver = ctx.solver.name();
+    let mut walk = Walk::new(stepping, dofs.n_free, mesh);
+    let mut bufs = Buffers {
+        step: vec![0.0; ubar.len()],
+        u: vec![0.0; dofs.n_free],
+        du: vec![0.0; dofs.n_free],
+        saved: mesh.coords.clone(),
+    };
+    // The sampled check after each increment, the certified one after the
+    // last, after any step back, and after every increment once an inversion
+    // has slipped between the sample points. A stop at the limit of adaptive
+    // stepping (with `finish`) ends the run at the geometry reached.
+    while walk.at < walk.total && out.stopped.is_none() {
+        let inc = walk.increment();
+        tick(Stage::Increment, inc.k, walk.increments)?;
+        for (s, b) in bufs.step.iter_mut().zip(ubar) {
+            *s = b * inc.h;
+        }
+        bufs.saved.copy_from_slice(&mesh.coords);
+        walk.predictor.predict_into(inc.h, &mut bufs.u);
+        let certified = walk.certify_all || walk.at + inc.len == walk.total || !out.step_backs.is_empty();
+        let result = ctx.attempt(mesh, &mut bufs, certified, timings, &mut out);
+        walk.settle(result, &inc, certified, mesh, &bufs, &mut out)?;
+    }
+    Ok(out)
+}
+
+/// One attempted increment: its place in the load, in ticks and as fractions.
+struct Increment {
+    /// The nominal increment it belongs to, from 0.
+    k: usize,
+    /// Its length in ticks.
+    len: u64,
+    /// Load fraction at its start.
+    from: f64,
+    /// Its size, as a fraction of the whole load.
+    h: f64,
+}
+
+/// Where the increment loop stands: the load reached in ticks, the splits of
+/// the current nominal increment, the predictor and the check policy.
+struct Walk {
+    increments: usize,
+    /// Halvings allowed per nominal increment (0 without adaptive stepping).
+    splits: usize,
+    adaptive: bool,
+    finish: bool,
+    /// Ticks per nominal increment, and in the whole load.
+    nominal: u64,
+    total: u64,
+    /// Ticks of load reached, and halvings of the current step.
+    at: u64,
+    depth: usize,
+    /// The certified check after every increment (an inversion has slipped
+    /// between the sample points).
+    certify_all: bool,
+    predictor: Predictor,
+    n_free: usize,
+    /// The geometry at load 0, for a restart.
+    start: Vec<f64>,
+}
+
+impl Walk {
+    /// At load 0 of `mesh`, before the first increment.
+    fn new(stepping: &Stepping, n_free: usize, mesh: &HighOrderMesh) -> Walk {
+        let splits = if stepping.adaptive { stepping.max_splits } else { 0 };
+        let nominal = 1u64 << splits;
+        Walk {
+            increments: stepping.increments,
+            splits,
+            adaptive: stepping.adaptive,
+            finish: stepping.finish,
+            nominal,
+            total: stepping.increments as u64 * nominal,
+            at: 0,
+            depth: 0,
+            certify_all: false,
+            predictor: Predictor::new(n_free),
+            n_free,
+            start: mesh.coords.clone(),
+        }
+    }
+
+    /// The next increment to attempt.
+    fn increment(&self) -> Increment {
+        let len = self.nominal >> self.depth;
+        Increment {
+            k: (self.at / self.nominal) as usize,
+            len,
+            from: self.at as f64 / self.total as f64,
+            h: len as f64 / self.total as f64,
+        }
+    }
+
+    /// Act on the outcome of attempting `inc`: accept it, start again from
+    /// load 0, split it, stop (setting `out.stopped`) or fail.
+    fn settle(
+        &mut self,
+        result: std::result::Result<Option<usize>, Failure>,
+        inc: &Increment,
+        certified: bool,
+        mesh: &mut HighOrderMesh,
+        bufs: &Buffers,
+        out: &mut IncrementsReport,
+    ) -> Result<()> {
+        match result {
+            // An earlier increment, checked only at the sample points,
+            // inverted cell c between them: start again from the straight
+            // mesh with the certified check after every step.
+            Ok(Some(c)) if certified && !self.certify_all => self.restart(inc, Some(c), mesh, out),
+            Ok(_) => self.accept(&bufs.u, inc, out),
+            Err(Failure::Fatal(e)) => return Err(e),
+            Err(Failure::AtStart(detail)) if self.finish && self.certify_all => stop(
+                out,
+                ElasticStop {
+                    load: inc.from,
+                    reason: StepBackReason::SampledInvalid,
+                    cell: None,
+                    detail,
+                    restarted: false,
+                },
+            ),
+            Err(Failure::AtStart(detail)) if !self.adaptive || self.certify_all => {
+                return Err(Error::InvalidElement(format!(
+                    "{detail} in increment {} of {}; try more increments or another Poisson ratio",
+                    inc.k + 1,
+                    self.increments
+                )))
+            }
+            // An earlier increment left det J ≤ 0 at a quadrature point of
+            // the assembly between the points of the sampled check.
+            Err(Failure::AtStart(_)) => self.restart(inc, None, mesh, out),
+            Err(Failure::Retry { reason, cell, detail }) => {
+                mesh.coords.copy_from_slice(&bufs.saved);
+                return self.split(inc, reason, cell, detail, out);
+            }
+        }
+        Ok(())
+    }
+
+    /// Accept `inc`, whose solution on the free dofs is `u`.
+    fn accept(&mut self, u: &[f64], inc: &Increment, out: &mut IncrementsReport) {
+        self.predictor.accept(u, inc.h);
+        self.at += inc.len;
+        out.load_fractions.push(self.at as f64 / self.total as f64);
+        if self.at.is_multiple_of(self.nominal) {
+            self.depth = 0;
+        }
+    }
+
+    /// Start again from load 0 with the certified check after every
+    /// increment, recording `inc` as a step back (cell `cell` when known).
+    fn restart(&mut self, inc: &Increment, cell: Option<usize>, mesh: &mut HighOrderMesh, out: &mut IncrementsReport) {
+        out.step_backs.push(StepBack { load: inc.from, step: inc.h, reason: StepBackReason::Restarted, cell });
+        mesh.coords.copy_from_slice(&self.start);
+        out.load_fractions.clear();
+        (self.at, self.depth, self.certify_all) = (0, 0, true);
+        self.predictor = Predictor::new(self.n_free);
+    }
+
+    /// Halve the rejected `inc` (the geometry is already restored), or at the
+    /// limit stop with `finish` (unless Newton–Raphson failed) or fail.
+    fn split(
+        &mut self,
+        inc: &Increment,
+        reason: StepBackReason,
+        cell: Option<usize>,
+        detail: String,
+        out: &mut IncrementsReport,
+    ) -> Result<()> {
+        if self.depth >= self.splits && self.finish && reason != StepBackReason::NewtonFailed {
+            stop(out, ElasticStop { load: inc.from, reason, cell, detail, restarted: false });
+            return Ok(());
+        }
+        if self.depth >= self.splits {
+            return Err(self.limit_error(inc, reason, &detail));
+        }
+        out.step_backs.push(StepBack { load: inc.from, step: inc.h, reason, cell });
+        self.depth += 1;
+        self.predictor.step_back();
+        Ok(())
+    }
+
+    /// The error of `inc`, rejected for `reason` when it cannot be split any more.
+    fn limit_error(&self, inc: &Increment, reason: StepBackReason, detail: &str) -> Error {
+        let (increments, splits, from) = (self.increments, self.splits, inc.from);
+        let mut place = format!("in increment {} of {increments}", inc.k + 1);
+        if self.adaptive {
+            place += &format!(
+                " (load {from:.4} to {:.4}, after halving the step {splits} times: the limit of adaptive stepping)",
+                from + inc.h
+            );
+        }
+        match reason {
+            StepBackReason::NewtonFailed => {
+                Error::Solver(format!("{detail} {place}; try more increments, or the CIL or ILE formulation"))
+            }
+            _ if self.adaptive => Error::InvalidElement(format!(
+                "{detail} {place}; try more increments or another Poisson ratio, or turn adaptive stepping off to \
+                 get the mesh with its invalid cells reported (a cell no step keeps valid, e.g. a kept boundary cap)"
+            )),
+            _ => Error::InvalidElement(format!("{detail} {place}; try more increments or another Poisson ratio")),
+        }
+    }
+}
+
+/// Stop the run at the last accepted geometry, where adaptive stepping gave up.
+fn stop(out: &mut IncrementsReport, stopped: ElasticStop) {
+    out.stopped = Some(stopped);
+    out.certified = None;
+}
+
+/// The vectors of one increment, reused from one to the next.
+struct Buffers {
+    /// The prescribed values of the increment: ū times its step.
+    step: Vec<f64>,
+    /// Its solution on the free dofs, started from the predictor.
+    u: Vec<f64>,
+    /// A Newton–Raphson correction on the free dofs.
+    du: Vec<f64>,
+    /// The geometry the increment starts from.
+    saved: Vec<f64>,
+}
+
+/// What one increment needs besides the geometry.
+struct IncrementContext<'a, K> {
+    /// The last assembled system; its buffers are reused.
+    system: Assembled,
+    dofs: &'a DofMap,
+    pattern: SymmetricCsc,
+    plan: AssemblyPlan,
+    solver: Box<dyn LinearSolver>,
+    kernel: &'a K,
+    residual: bool,
+    newton: Option<(f64, usize)>,
+    check: Option<quality::ValidityCheck>,
+}
+
+impl<'a, K: ElementKernel> IncrementContext<'a, K> {
+    /// The sparsity pattern, assembly plan, linear solver and validity check
+    /// of the whole run, set up once (timed as `setup`).
+    fn new(
+        mesh: &HighOrderMesh,
+        kernel: &'a K,
+        stepping: &Stepping,
+        dofs: &'a DofMap,
+        timings: &mut Timings,
+    ) -> Result<IncrementContext<'a, K>> {
+        let t = Instant::now();
+        let pattern = dofs.pattern(mesh);
+        let plan = AssemblyPlan::new(mesh, dofs, &pattern);
+        let solver = make_solver(stepping.solver.clone(), stepping.direct_ordering, mesh, dofs, &pattern)?;
+        let check = stepping.adaptive.then(|| {
+            quality::ValidityCheck::new(LagrangeBasis::new(&NodeSet::new(mesh.simplex, mesh.order, mesh.spacing)))
+        });
+        timings.setup += t.elapsed().as_secs_f64();
+        Ok(IncrementContext {
+            system: Assembled::default(),
+            dofs,
+            pattern,
+            plan,
+            solver,
+            kernel,
+            residual: stepping.residual || stepping.newton.is_some(),
+            newton: stepping.newton,
+            check,
+        })
+    }
+
+    /// One increment from the geometry `bufs.saved` (= `mesh.coords` on
+    /// entry) with prescribed values `bufs.step`, starting the solve from
+    /// `bufs.u`, then the validity check (certified or sampled). Ok(Some(c)):
+    /// accepted, but cell c was already invalid at the start.
+    fn attempt(
+        &mut self,
+        mesh: &mut HighOrderMesh,
+        bufs: &mut Buffers,
+        certified: bool,
+        timings: &mut Timings,
+        out: &mut IncrementsReport,
+    ) -> std::result::Result<Option<usize>, Failure> {
+        let r0 = self.linear_step(mesh, bufs, timings, out)?;
+        self.newton(mesh, bufs, r0, timings, out)?;
+        self.check_cells(mesh, &bufs.saved, certified, timings, out)
+    }
+
+    /// The linear solve of the increment on the geometry at its start, added
+    /// to `mesh`; returns the norm of its right-hand side, ‖R₀‖.
+    fn linear_step(
+        &mut self,
+        mesh: &mut HighOrderMesh,
+        bufs: &mut Buffers,
+        timings: &mut Timings,
+        out: &mut IncrementsReport,
+    ) -> std::result::Result<f64, Failure> {
+        let dofs = self.dofs;
+        let t = Instant::now();
+        // det J ≤ 0 here is at the start geometry: no split of this increment helps.
+        let system = &mut self.system;
+        assemble_into(
+            mesh,
+            &mesh.coords,
+            dofs,
+            &self.pattern,
+            &self.plan,
+            self.kernel,
+            &bufs.step,
+            self.residual,
+            system,
+        )
+        .map_err(|e| match e {
+            Error::InvalidElement(detail) => Failure::AtStart(detail),
+            e => Failure::Fatal(e),
+        })?;
+        timings.assembly += t.elapsed().as_secs_f64();
+        let r0 = system.rhs_norm.max(f64::MIN_POSITIVE);
+        self.solve(mesh, &bufs.step, &mut bufs.u, timings, out)?;
+        for (dof, x) in mesh.coords.iter_mut().enumerate() {
+            let f = dofs.free[dof];
+            *x += if f == usize::MAX { bufs.step[dof] } else { bufs.u[f] };
+        }
+        Ok(r0)
+    }
+
+    /// Solve the assembled system into `x` (free dofs), then recover the
+    /// condensed cell-interior values with prescribed values `prescribed`.
+    fn solve(
+        &mut self,
+        mesh: &HighOrderMesh,
+        prescribed: &[f64],
+        x: &mut [f64],
+        timings: &mut Timings,
+        out: &mut IncrementsReport,
+    ) -> std::result::Result<(), Failure> {
+        let t = Instant::now();
+        let n = self.dofs.n_system;
+        let system = &self.system;
+        let stats =
+            self.solver.solve(&self.pattern, &system.values, &system.rhs, &mut x[..n]).map_err(Failure::Fatal)?;
+        out.record_solve(&stats);
+        system.recover_interior(mesh, self.dofs, prescribed, x);
+        timings.solve += t.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// NONLINEAR: Newton–Raphson from the geometry the linear step reached,
+    /// K Δx = −R until ‖R‖/‖R₀‖ < tolerance; the history goes to `out`.
+    fn newton(
+        &mut self,
+        mesh: &mut HighOrderMesh,
+        bufs: &mut Buffers,
+        r0: f64,
+        timings: &mut Timings,
+        out: &mut IncrementsReport,
+    ) -> std::result::Result<(), Failure> {
+        let Some((tolerance, max_iterations)) = self.newton else { return Ok(()) };
+        let dofs = self.dofs;
+        let zero = vec![0.0; bufs.step.len()];
+        let mut hist = vec![1.0];
+        let mut converged = false;
+        for _ in 0..max_iterations {
+            let t = Instant::now();
+            let system = &mut self.system;
+            let assembled =
+                assemble_into(mesh, &mesh.coords, dofs, &self.pattern, &self.plan, self.kernel, &zero, true, system);
+            timings.assembly += t.elapsed().as_secs_f64();
+            if let Err(e) = assembled {
+                out.newton_history.push(hist);
+                return Err(e.into());
+            }
+            let ratio = system.rhs_norm / r0;
+            hist.push(ratio);
+            if !ratio.is_finite() {
+                out.newton_history.push(hist);
+                return Err(Failure::Retry {
+                    reason: StepBackReason::NewtonFailed,
+                    cell: None,
+                    detail: "Newton residual is not finite".into(),
+                });
+            }
+            if ratio < tolerance {
+                converged = true;
+                break;
+            }
+            bufs.du.fill(0.0);
+            self.solve(mesh, &zero, &mut bufs.du, timings, out)?;
+            for (dof, x) in mesh.coords.iter_mut().enumerate() {
+                let f = dofs.free[dof];
+                if f != usize::MAX {
+                    *x += bufs.du[f];
+                }
+            }
+        }
+        let last = *hist.last().expect("history starts with 1");
+        out.newton_history.push(hist);
+        if !converged {
+            return Err(Failure::Retry {
+                reason: StepBackReason::NewtonFailed,
+                cell: None,
+                detail: format!(
+                    "Newton-Raphson did not converge in {max_iterations} iterations (relative residual {last:.2e})"
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// The validity check after the increment (certified or sampled), against
+    /// the geometry `saved` it started from: Err(Retry) when it made a cell
+    /// invalid, Ok(Some(c)) when cell c was already invalid at its start.
+    fn check_cells(
+        &self,
+        mesh: &HighOrderMesh,
+        saved: &[f64],
+        certified: bool,
+        timings: &mut Timings,
+        out: &mut IncrementsReport,
+    ) -> std::result::Result<Option<usize>, Failure> {
+        let Some(check) = &self.check else { return Ok(None) };
+        let t = Instant::now();
+        // Only a cell that this increment made invalid rejects it; one that
+        // was already invalid at its start is returned to the caller.
+        let (mut new, mut old) = (None, None);
+        // Certified: the bounds of every cell are kept for the quality stage,
+        // which would otherwise compute them again on the final mesh.
+        out.certified = certified.then(|| check.certify_cells(&mesh.coords, &mesh.cells));
+        let invalid: Vec<usize> = match &out.certified {
+            Some(cells) => (0..cells.len()).filter(|&c| cells[c].verdict == quality::Verdict::Invalid).collect(),
+            None => check.invalid_cells(&mesh.coords, &mesh.cells, certified),
+        };
+        for c in invalid {
+            if check.cell_is_invalid(saved, mesh.cell(c), certified) {
+                old = old.or(Some(c));
+            } else {
+                new = Some(c);
+                break;
+            }
+        }
+        timings.check += t.elapsed().as_secs_f64();
+        match new {
+            Some(c) if certified => Err(Failure::Retry {
+                reason: StepBackReason::CertifiedInvalid,
+                cell: Some(c),
+                detail: format!("cell {c} is inverted (certified: det J <= 0 somewhere in it)"),
+            }),
+            Some(c) => Err(Failure::Retry {
+                reason: StepBackReason::SampledInvalid,
+                cell: Some(c),
+                detail: format!("cell {c} has det J <= 0 at a quadrature point"),
+            }),
+            None => Ok(old),
+        }
+    }
+}
+
+/// Secant predictor of the increment solutions u_k (free dofs) for steps of
+/// any size h_k. With the rates v_k = u_k / h_k (mean dx/dλ over increment
+/// k, i.e. the rate at its midpoint to second order), extrapolate the rate
+/// linearly through the midpoints of the two previous increments:
+///
+/// u_k ≈ h_k [v_(k-1) + (v_(k-1) − v_(k-2)) (h_(k-1) + h_k) / (h_(k-2) + h_(k-1))],
+///
+/// exact when x(λ) is quadratic in the load λ, and 2 u_(k-1) − u_(k-2) for
+/// equal steps. After one previous increment, u_k ≈ h_k v_(k-1); after a step
+/// back the curvature term is dropped until two increments are known again
+/// (the path was just found to bend).
+#[derive(Debug, Clone)]
+pub struct Predictor {
+    v1: Vec<f64>,
+    v2: Vec<f64>,
+    h1: f64,
+    h2: f64,
+    known: usize,
+}
+
+impl Predictor {
+    pub fn new(n: usize) -> Predictor {
+        Predictor { v1: vec![0.0; n], v2: vec![0.0; n], h1: 0.0, h2: 0.0, known: 0 }
+    }
+
+    /// The guess for an increment of size `h`, written into `u`.
+    pub fn predict_into(&self, h: f64, u: &mut [f64]) {
+        match self.known {
+            0 => u.fill(0.0),
+            1 => {
+                for (x, v) in u.iter_mut().zip(&self.v1) {
+                    *x = h * v;
+                }
+            }
+            _ => {
+                let r = (self.h1 + h) / (self.h2 + self.h1);
+                for ((x, v1), v2) in u.iter_mut().zip(&self.v1).zip(&self.v2) {
+                    *x = h * (v1 + r * (v1 - v2));
+                }
+            }
+        }
+    }
+
+    /// Record the solution `u` of an accepted increment of size `h`.
+    pub fn accept(&mut self, u: &[f64], h: f64) {
+        std::mem::swap(&mut self.v1, &mut self.v2);
+        for (v, x) in self.v1.iter_mut().zip(u) {
+            *v = x / h;
+        }
+        (self.h2, self.h1) = (self.h1, h);
+        self.known = (self.known + 1).min(2);
+    }
+
+    /// Forget the curvature term after a rejected increment.
+    pub fn step_back(&mut self) {
+        self.known = self.known.min(1);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// x(λ) = a λ + b λ² per dof: the increment over [λ0, λ0 + h].
+    fn increment(l0: f64, h: f64) -> Vec<f64> {
+        let (a, b) = ([1.0, -2.0, 0.5], [3.0, 0.25, -4.0]);
+        (0..3).map(|i| a[i] * h + b[i] * ((l0 + h).powi(2) - l0 * l0)).collect()
+    }
+
+    #[test]
+    fn secant_predictor_is_exact_on_quadratic_paths_with_unequal_steps() {
+        let steps = [0.25, 0.125, 0.0625, 0.0625, 0.25, 0.03125];
+        let mut p = Predictor::new(3);
+        let mut l = 0.0;
+        let mut u = vec![0.0; 3];
+        for (k, &h) in steps.iter().enumerate() {
+            p.predict_into(h, &mut u);
+            let exact = increment(l, h);
+            if k >= 2 {
+                for (g, e) in u.iter().zip(&exact) {
+                    assert!((g - e).abs() < 1e-13, "step {k}: {u:?} vs {exact:?}");
+                }
+            }
+            p.accept(&exact, h);
+            l += h;
+        }
+    }
+
+    #[test]
+    fn secant_predictor_with_equal_steps_is_two_u1_minus_u2_and_resets_after_a_step_back() {
+        let mut p = Predictor::new(2);
+        let mut u = vec![9.0; 2];
+        p.predict_into(0.1, &mut u);
+        assert_eq!(u, [0.0, 0.0]);
+        p.accept(&[1.0, 2.0], 0.1);
+        p.predict_into(0.1, &mut u);
+        assert!((u[0] - 1.0).abs() < 1e-15 && (u[1] - 2.0).abs() < 1e-15);
+        p.accept(&[1.5, 2.0], 0.1);
+        p.predict_into(0.1, &mut u);
+        assert!((u[0] - 2.0).abs() < 1e-14 && (u[1] - 2.0).abs() < 1e-14, "{u:?}");
+        // After a step back: first order, scaled by the step ratio.
+        p.step_back();
+        p.predict_into(0.05, &mut u);
+        assert!((u[0] - 0.75).abs() < 1e-14 && (u[1] - 1.0).abs() < 1e-14, "{u:?}");
+    }
+
+    #[test]
+    fn steps_are_the_differences_of_the_load_fractions() {
+        let r = IncrementsReport { load_fractions: vec![0.5, 0.75, 1.0], ..Default::default() };
+        assert_eq!(r.steps(), [0.5, 0.25, 0.25]);
+    }
+}
