@@ -5,7 +5,7 @@ use crate::mesh::{LinearMesh, Topology};
 use crate::{Error, Result};
 
 /// Normalise user fibres: one finite non-zero vector per cell.
-pub fn checked_fibres(f: &[[f64; 3]], n_cells: usize) -> Result<Vec<[f64; 3]>> {
+pub(crate) fn checked_fibres(f: &[[f64; 3]], n_cells: usize) -> Result<Vec<[f64; 3]>> {
     if f.len() != n_cells {
         return Err(Error::InvalidInput(format!("{} fibre directions given for {n_cells} cells", f.len())));
     }

@@ -42,7 +42,8 @@ mod transversely_isotropic;
 #[cfg(test)]
 mod testing;
 
-pub use fibres::{checked_fibres, default_fibres};
+pub(crate) use fibres::checked_fibres;
+pub use fibres::default_fibres;
 pub use invariants::{anisotropic_invariants, Invariants};
 pub use mooney_rivlin::MooneyRivlin;
 pub use neo_hookean::NeoHookean;
