@@ -1,18 +1,18 @@
 # Build step of CMakeLists.txt (cmake -P): build hocurve with cargo and stage
 # the files under the names they are installed with:
 #
-#   STAGE/lib/libhocurve.so.X.Y.Z  (SONAME libhocurve.so.X), libhocurve.so.X, libhocurve.so
+#   STAGE/lib/libhocurve.so.X.Y.Z  (SONAME given: libhocurve.so.X, or .0.Y while X = 0), its two links
 #   STAGE/lib/libhocurve.a         exporting only the hoc_* functions
 #   STAGE/bin/hocurve              (BUILD_CLI)
 #
-# Input (-D): CARGO MANIFEST TARGET_DIR STAGE VERSION VERSION_MAJOR BUILD_CLI
+# Input (-D): CARGO MANIFEST TARGET_DIR STAGE VERSION SONAME BUILD_CLI
 #             NATIVE_LIBS C_COMPILER OBJCOPY AR READELF
 #
 # A staged file is rewritten only when cargo's output changed, so a no-op
 # build relinks nothing downstream.
 cmake_minimum_required(VERSION 3.20)
 
-foreach(v CARGO MANIFEST TARGET_DIR STAGE VERSION VERSION_MAJOR C_COMPILER OBJCOPY AR READELF)
+foreach(v CARGO MANIFEST TARGET_DIR STAGE VERSION SONAME C_COMPILER OBJCOPY AR READELF)
   if(NOT DEFINED ${v} OR "${${v}}" STREQUAL "")
     message(FATAL_ERROR "hocurve_stage.cmake: ${v} not given")
   endif()
@@ -71,12 +71,8 @@ endfunction()
 
 # 3. libhocurve.so.X.Y.Z with its two links. build.rs gives it the SONAME.
 set(so_real "libhocurve.so.${VERSION}")
-# The ABI version (build.rs): the major, or "0.minor" while the major is 0.
-if(VERSION_MAJOR EQUAL 0)
-  set(so_major "libhocurve.so.0.${VERSION_MINOR}")
-else()
-  set(so_major "libhocurve.so.${VERSION_MAJOR}")
-endif()
+# SONAME: the ABI version's name, computed by CMakeLists.txt like build.rs does.
+set(so_major "${SONAME}")
 run("${CMAKE_COMMAND}" -E copy_if_different "${release}/libhocurve.so" "${STAGE}/lib/${so_real}")
 execute_process(COMMAND "${READELF}" -d "${STAGE}/lib/${so_real}" OUTPUT_VARIABLE dyn RESULT_VARIABLE rc)
 if(NOT rc EQUAL 0 OR NOT dyn MATCHES "\\(SONAME\\)[^\n]*\\[${so_major}\\]")

@@ -121,13 +121,18 @@ def load():
     return HEADER.read_text(), MODULE.read_text()
 
 
+def assert_same_names(c, f, what):
+    """The names of `c` (from the header) and `f` (from the module) agree."""
+    missing = sorted(set(c) - set(f))
+    assert not missing, f"{what} of hocurve.h missing from hocurve.f90: {missing}"
+    extra = sorted(set(f) - set(c))
+    assert not extra, f"{what} of hocurve.f90 that hocurve.h lacks: {extra}"
+
+
 def test_every_constant_of_the_header_is_in_the_module_with_its_value():
     header, module = load()
     c, f = c_constants(header), f_constants(module)
-    missing = sorted(set(c) - set(f))
-    assert not missing, f"constants of hocurve.h missing from hocurve.f90: {missing}"
-    extra = sorted(set(f) - set(c))
-    assert not extra, f"constants of hocurve.f90 that hocurve.h lacks: {extra}"
+    assert_same_names(c, f, "constants")
     for name, value in c.items():
         fv = f[name].replace("_c_double", "").replace("d0", "").replace("_c_int", "")
         assert float(fv) == float(value), f"{name}: {value} in C, {f[name]} in Fortran"
@@ -145,10 +150,7 @@ def test_every_struct_has_the_same_fields_in_the_same_order():
 def test_every_function_has_an_interface_with_the_same_arguments():
     header, module = load()
     c, f = c_functions(header), f_functions(module)
-    missing = sorted(set(c) - set(f))
-    assert not missing, f"functions of hocurve.h without a Fortran interface: {missing}"
-    extra = sorted(set(f) - set(c))
-    assert not extra, f"Fortran interfaces to functions hocurve.h lacks: {extra}"
+    assert_same_names(c, f, "functions")
     for name, (ret, params, raw) in c.items():
         _, fargs, decls = f[name]
         assert len(params) == len(fargs), f"{name}: arguments {[p[0] for p in params]} in C, {fargs} in Fortran"
