@@ -11,7 +11,7 @@ mod common;
 
 use std::time::Instant;
 
-use hocurve::assembly::{assemble, AssemblyPlan, DofMap, LinearElasticKernel};
+use hocurve::assembly::{DofMap, LinearElasticKernel, System};
 use hocurve::cases;
 use hocurve::mapping::ElementCache;
 use hocurve::material::LinearElastic;
@@ -39,14 +39,12 @@ fn main() -> hocurve::Result<()> {
     let topo = Topology::new(&lin)?;
     let nodes = NodeSet::new(topo.simplex, p, NodeSpacing::Optimal);
     let mesh = HighOrderMesh::elevate(&lin, &topo, &nodes, NodeSpacing::Optimal)?;
-    let dofs = DofMap::new(&mesh);
-    let pattern = dofs.pattern(&mesh);
     let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(topo.simplex, 2 * p));
     let kernel = LinearElasticKernel { cache, material: LinearElastic::try_from_young_poisson(1.0, 0.45)? };
     let prescribed: Vec<f64> = (0..mesh.coords.len()).map(|i| 0.01 * (i as f64 * 0.1).sin()).collect();
-    let plan = AssemblyPlan::new(&mesh, &dofs, &pattern);
-    let system = assemble(&mesh, &mesh.coords, &dofs, &pattern, &plan, &kernel, &prescribed, false)?;
-    let (values, rhs) = (system.values, system.rhs);
+    let mut system = System::new(&mesh, DofMap::new(&mesh));
+    system.assemble(&mesh, &mesh.coords, &kernel, &prescribed, false)?;
+    let (pattern, values, rhs) = (system.pattern(), system.values(), system.rhs());
     let base_mb = common::peak_rss_mb();
     let k = orderings.len();
     let (mut sym_t, mut num_t, mut nnz) = (vec![vec![]; k], vec![vec![]; k], vec![0usize; k]);
@@ -54,12 +52,12 @@ fn main() -> hocurve::Result<()> {
     for _ in 0..reps {
         for (i, &o) in orderings.iter().enumerate() {
             let t = Instant::now();
-            let chol = SparseCholesky::try_analyse_with(&pattern, o)?;
+            let chol = SparseCholesky::try_analyse_with(pattern, o)?;
             sym_t[i].push(t.elapsed().as_secs_f64());
             nnz[i] = chol.factor_nnz();
-            let mut x = rhs.clone();
+            let mut x = rhs.to_vec();
             let t = Instant::now();
-            chol.try_factor_solve_in_place(&pattern, &values, &mut x)?;
+            chol.try_factor_solve_in_place(pattern, values, &mut x)?;
             num_t[i].push(t.elapsed().as_secs_f64());
             sol[i] = x;
         }

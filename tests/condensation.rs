@@ -99,7 +99,7 @@ fn the_residual_norm_counts_the_condensed_unknowns() {
         .map(|condensed| {
             let s = common::straight_system(&case, 4, condensed, true);
             let a = &s.system;
-            (a.rhs_norm, a.rhs.iter().map(|v| v * v).sum::<f64>().sqrt(), s.pattern.n)
+            (a.rhs_norm(), a.rhs().iter().map(|v| v * v).sum::<f64>().sqrt(), s.pattern().n)
         })
         .collect();
     let ((full, full_rhs, nf), (cond, cond_rhs, nc)) = (norms[0], norms[1]);

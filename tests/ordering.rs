@@ -15,7 +15,7 @@ use hocurve::solver::{
 /// K_ff and a right-hand side of the straight order-p mesh of `case`.
 fn system(case: &Case, p: usize) -> (SymmetricCsc, Vec<f64>, Vec<f64>) {
     let s = common::straight_system(case, p, false, false);
-    (s.pattern, s.system.values, s.system.rhs)
+    (s.pattern().clone(), s.system.values().to_vec(), s.system.rhs().to_vec())
 }
 
 fn check_permutation(pattern: &SymmetricCsc, dim: usize) {

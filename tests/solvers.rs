@@ -94,7 +94,8 @@ fn auto_and_iterative_choices_parse() {
 /// K_ff of the straight order-p sphere cavity mesh.
 fn system(p: usize) -> (HighOrderMesh, DofMap, SymmetricCsc, Vec<f64>, Vec<f64>) {
     let s = common::straight_system(&cases::sphere_in_box_3d(2, 3), p, false, false);
-    (s.mesh, s.dofs, s.pattern, s.system.values, s.system.rhs)
+    let (dofs, pattern) = (s.dofs().clone(), s.pattern().clone());
+    (s.mesh, dofs, pattern, s.system.values().to_vec(), s.system.rhs().to_vec())
 }
 
 #[test]
@@ -190,31 +191,31 @@ fn pcg_restarts_with_a_safe_preconditioner_when_slivers_break_the_default_one() 
     for p in [2, 3, 4] {
         let a = common::straight_system(&regular, p, false, false);
         let b = common::straight_system(&slivers, p, false, false);
-        assert_eq!((&a.pattern.col_ptr, &a.pattern.row_idx), (&b.pattern.col_ptr, &b.pattern.row_idx));
-        let n = a.pattern.n;
+        assert_eq!((&a.pattern().col_ptr, &a.pattern().row_idx), (&b.pattern().col_ptr, &b.pattern().row_idx));
+        let n = a.pattern().n;
         let params = IterativeParams { fallback_max_dofs: 0, ..Default::default() };
-        let mut solver = IterativeSolver::try_new(&a.pattern, 3, multigrid_levels(&a.mesh, &a.dofs), params).unwrap();
+        let mut solver = IterativeSolver::try_new(a.pattern(), 3, multigrid_levels(&a.mesh, a.dofs()), params).unwrap();
         let mut x = vec![0.0; n];
-        let first = solver.solve(&a.pattern, &a.system.values, &a.system.rhs, &mut x).unwrap();
+        let first = solver.solve(a.pattern(), a.system.values(), a.system.rhs(), &mut x).unwrap();
         assert_eq!((first.solved_by, first.fallback), (SolvedBy::Pcg, None));
-        let second = solver.solve(&b.pattern, &b.system.values, &b.system.rhs, &mut x);
+        let second = solver.solve(b.pattern(), b.system.values(), b.system.rhs(), &mut x);
         let second = second.unwrap_or_else(|e| panic!("p = {p}: {e}"));
         println!("p={p}: {n} unknowns, {first:?}, then {second:?}");
         assert_eq!(second.solved_by, SolvedBy::PcgRestarted, "p = {p}");
         assert!(second.fallback.is_some());
-        let (values, rhs) = (&b.system.values, &b.system.rhs);
-        let r = b.pattern.sym_matvec(values, &x);
+        let (values, rhs) = (b.system.values(), b.system.rhs());
+        let r = b.pattern().sym_matvec(values, &x);
         let res = r.iter().zip(rhs).map(|(p, q)| (p - q).powi(2)).sum::<f64>().sqrt();
         let b_norm = rhs.iter().map(|v| v * v).sum::<f64>().sqrt();
         assert!(res <= 1.001e-5 * b_norm, "p = {p}: relative residual {:e}", res / b_norm);
         let mut exact = vec![0.0; n];
-        DirectSolver::try_new(&b.pattern).unwrap().solve(&b.pattern, values, rhs, &mut exact).unwrap();
+        DirectSolver::try_new(b.pattern()).unwrap().solve(b.pattern(), values, rhs, &mut exact).unwrap();
         let scale = exact.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         let err = x.iter().zip(&exact).fold(0.0f64, |m, (p, q)| m.max((p - q).abs()));
         println!("p={p}: max |x - x_direct| = {err:.1e} of max |x| = {scale:.1e}");
         assert!(err < 1e-3 * scale, "p = {p}");
         // The restart refreshed the warm start: the default preconditioner again.
-        let third = solver.solve(&b.pattern, values, rhs, &mut vec![0.0; n]).unwrap();
+        let third = solver.solve(b.pattern(), values, rhs, &mut vec![0.0; n]).unwrap();
         assert_eq!((third.solved_by, third.fallback), (SolvedBy::Pcg, None), "p = {p}");
     }
 }

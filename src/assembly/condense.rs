@@ -222,11 +222,9 @@ impl InteriorRecovery {
                 let ub: Vec<f64> = (self.split.boundary.iter())
                     .map(|&l| {
                         let dof = local(c, l);
-                        let f = dofs.free[dof];
-                        if f == usize::MAX {
-                            prescribed[dof]
-                        } else {
-                            known[f]
+                        match dofs.free_index(dof) {
+                            Some(f) => known[f],
+                            None => prescribed[dof],
                         }
                     })
                     .collect();
@@ -236,7 +234,7 @@ impl InteriorRecovery {
             .collect();
         for (c, values) in interior.chunks_exact(ni).enumerate() {
             for (&l, &v) in self.split.interior.iter().zip(values) {
-                u[dofs.free[local(c, l)]] = v;
+                u[dofs.free_index(local(c, l)).expect("interior dofs are free")] = v;
             }
         }
     }

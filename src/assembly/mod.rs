@@ -37,14 +37,27 @@ use crate::{Error, Result};
 #[derive(Debug, Clone)]
 pub struct DofMap {
     pub dim: usize,
-    /// `free[dof]` = index among the free dofs, or `usize::MAX` if prescribed.
-    pub free: Vec<usize>,
+    /// `free[dof]` = index among the free dofs, or `usize::MAX` if prescribed
+    /// (read through [`DofMap::role`]).
+    free: Vec<usize>,
     pub n_free: usize,
     /// Unknowns of the assembled system: the free dofs below `n_system`
     /// (`n_free` without condensation).
     pub n_system: usize,
     /// The cells' interior and boundary local dofs, with condensation.
     split: Option<LocalSplit>,
+}
+
+/// What one degree of freedom is in the assembled system ([`DofMap::role`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DofRole {
+    /// Its value is given: a boundary node's.
+    Prescribed,
+    /// An unknown of the assembled system, at this row (index among the free dofs).
+    System(usize),
+    /// A cell-interior unknown condensed out of the system and recovered
+    /// after each solve, at this index among the free dofs (`n_system` or more).
+    Interior(usize),
 }
 
 impl DofMap {
@@ -97,6 +110,43 @@ impl DofMap {
         DofMap { dim, free, n_free, n_system, split }
     }
 
+    /// What `dof` is: prescribed, a system unknown, or a condensed interior one.
+    #[inline]
+    pub fn role(&self, dof: usize) -> DofRole {
+        match self.free[dof] {
+            usize::MAX => DofRole::Prescribed,
+            f if f < self.n_system => DofRole::System(f),
+            f => DofRole::Interior(f),
+        }
+    }
+
+    /// The index of `dof` among the free dofs (system, then interior), or
+    /// None when it is prescribed.
+    #[inline]
+    pub fn free_index(&self, dof: usize) -> Option<usize> {
+        Some(self.free[dof]).filter(|&f| f != usize::MAX)
+    }
+
+    /// The row of `dof` in the assembled system, or None when it is
+    /// prescribed or condensed.
+    #[inline]
+    pub fn system_row(&self, dof: usize) -> Option<usize> {
+        Some(self.free[dof]).filter(|&f| f < self.n_system)
+    }
+
+    /// Move the geometry `x` (one value per dof) by a solution: `u` (on the
+    /// free dofs) at the free dofs, and `prescribed` (one value per dof) at
+    /// the prescribed ones, which are left alone when it is None.
+    pub fn add_to(&self, x: &mut [f64], u: &[f64], prescribed: Option<&[f64]>) {
+        for (dof, x) in x.iter_mut().enumerate() {
+            match (self.free_index(dof), prescribed) {
+                (Some(f), _) => *x += u[f],
+                (None, Some(p)) => *x += p[dof],
+                (None, None) => {}
+            }
+        }
+    }
+
     /// Whether the cell-interior dofs are condensed out of the system.
     pub fn is_condensed(&self) -> bool {
         self.split.is_some()
@@ -129,13 +179,13 @@ impl DofMap {
         let columns: Vec<Vec<usize>> = (0..n_nodes)
             .into_par_iter()
             .map(|n| {
-                if self.free[n * dim] >= self.n_system {
+                if self.system_row(n * dim).is_none() {
                     return Vec::new();
                 }
                 let mut nb: Vec<usize> = node_cells[start[n]..start[n + 1]]
                     .iter()
                     .flat_map(|&c| mesh.cell(c).iter().copied())
-                    .filter(|&m| m >= n && self.free[m * dim] < self.n_system)
+                    .filter(|&m| m >= n && self.system_row(m * dim).is_some())
                     .collect();
                 nb.sort_unstable();
                 nb.dedup();
@@ -213,22 +263,21 @@ pub fn color_cells(mesh: &HighOrderMesh) -> Vec<Vec<usize>> {
 /// (node(b), 0) of the pattern, so that no assembly searches the pattern.
 /// 4 bytes per pair of cell nodes (5 kB per cell at p = 4 in 3D).
 #[derive(Debug, Clone)]
-pub struct AssemblyPlan {
-    pub colors: Vec<Vec<usize>>,
+struct AssemblyPlan {
+    colors: Vec<Vec<usize>>,
     npc: usize,
     offsets: Vec<u32>,
 }
 
 impl AssemblyPlan {
-    pub fn new(mesh: &HighOrderMesh, dofs: &DofMap, pattern: &SymmetricCsc) -> AssemblyPlan {
+    fn new(mesh: &HighOrderMesh, dofs: &DofMap, pattern: &SymmetricCsc) -> AssemblyPlan {
         let (dim, npc) = (mesh.dim(), mesh.nodes_per_cell());
         let mut offsets = vec![u32::MAX; mesh.n_cells() * npc * npc];
         offsets.par_chunks_mut(npc * npc).enumerate().for_each(|(c, out)| {
             let cell = mesh.cell(c);
             for (ra, &na) in cell.iter().enumerate() {
                 for (cb, &nb) in cell.iter().enumerate() {
-                    let (r0, s0) = (dofs.free[na * dim], dofs.free[nb * dim]);
-                    if na > nb && r0 < dofs.n_system && s0 < dofs.n_system {
+                    if let (true, Some(r0), Some(s0)) = (na > nb, dofs.system_row(na * dim), dofs.system_row(nb * dim)) {
                         let k = pattern.position(r0, s0).expect("pattern covers every cell coupling");
                         out[ra * npc + cb] = (k - pattern.col_ptr[s0]) as u32;
                     }
@@ -286,7 +335,7 @@ fn element_rhs(
         None => b.fill(0.0),
     }
     for (cb, &nb) in cell.iter().enumerate() {
-        if dofs.free[nb * dim] != usize::MAX {
+        if dofs.free_index(nb * dim).is_some() {
             continue;
         }
         for j in 0..dim {
@@ -300,109 +349,212 @@ fn element_rhs(
     }
 }
 
-/// Add one element's matrix `ke` and right-hand side `b` ([`element_rhs`])
-/// into the global lower triangle and `rhs` (system rows only). `offsets` are
-/// the cell's from [`AssemblyPlan`]; within a pair's 3×3 (2×2) block the
-/// positions follow from the layout of [`DofMap::pattern`] (column (n, j)
-/// lists node n's components j.. then each later node's components in order,
-/// so the block of node m > n sits j places earlier in column (n, j) than in
-/// column (n, 0)).
-#[allow(clippy::too_many_arguments)]
-#[inline]
-fn scatter(
-    cell: &[usize],
-    offsets: &[u32],
-    dim: usize,
-    dofs: &DofMap,
-    pattern: &SymmetricCsc,
-    ke: &[f64],
-    b: &[f64],
-    values: &[AtomicU64],
-    rhs: &[AtomicU64],
-) {
-    let ndof_e = cell.len() * dim;
-    for (ra, &na) in cell.iter().enumerate() {
-        let r0 = dofs.free[na * dim];
-        if r0 >= dofs.n_system {
-            continue; // prescribed, or condensed
-        }
-        for (cb, &nb) in cell.iter().enumerate() {
-            let s0 = dofs.free[nb * dim];
-            if na < nb || s0 >= dofs.n_system {
-                continue;
-            }
-            // Offset of row (na, 0) within column (nb, 0).
-            let offset = if na == nb { 0 } else { offsets[ra * cell.len() + cb] as usize };
-            for j in 0..dim {
-                let start = pattern.col_ptr[s0 + j] + offset - j;
-                for i in if na == nb { j..dim } else { 0..dim } {
-                    debug_assert_eq!(pattern.row_idx[start + i] as usize, r0 + i);
-                    add(&values[start + i], ke[(ra * dim + i) * ndof_e + cb * dim + j]);
+/// The global lower triangle and right-hand side as the scatter sees them:
+/// atomics, each slot written by one thread per colour.
+struct Target<'a> {
+    dofs: &'a DofMap,
+    pattern: &'a SymmetricCsc,
+    values: &'a [AtomicU64],
+    rhs: &'a [AtomicU64],
+}
+
+impl Target<'_> {
+    /// Add one element's matrix `ke` and right-hand side `b`
+    /// ([`element_rhs`]) at its system rows. `offsets` are the cell's from
+    /// [`AssemblyPlan`]; within a pair's 3×3 (2×2) block the positions follow
+    /// from the layout of [`DofMap::pattern`] (column (n, j) lists node n's
+    /// components j.. then each later node's components in order, so the
+    /// block of node m > n sits j places earlier in column (n, j) than in
+    /// column (n, 0)).
+    #[inline]
+    fn add_cell(&self, cell: &[usize], offsets: &[u32], ke: &[f64], b: &[f64]) {
+        let (dofs, pattern, dim) = (self.dofs, self.pattern, self.dofs.dim);
+        let ndof_e = cell.len() * dim;
+        for (ra, &na) in cell.iter().enumerate() {
+            let Some(r0) = dofs.system_row(na * dim) else { continue }; // prescribed, or condensed
+            for (cb, &nb) in cell.iter().enumerate() {
+                let Some(s0) = dofs.system_row(nb * dim).filter(|_| na >= nb) else { continue };
+                // Offset of row (na, 0) within column (nb, 0).
+                let offset = if na == nb { 0 } else { offsets[ra * cell.len() + cb] as usize };
+                for j in 0..dim {
+                    let start = pattern.col_ptr[s0 + j] + offset - j;
+                    for i in if na == nb { j..dim } else { 0..dim } {
+                        debug_assert_eq!(pattern.row_idx[start + i] as usize, r0 + i);
+                        add(&self.values[start + i], ke[(ra * dim + i) * ndof_e + cb * dim + j]);
+                    }
                 }
             }
-        }
-        for (i, &bi) in b[ra * dim..(ra + 1) * dim].iter().enumerate() {
-            if bi != 0.0 {
-                add(&rhs[r0 + i], bi);
+            for (i, &bi) in b[ra * dim..(ra + 1) * dim].iter().enumerate() {
+                if bi != 0.0 {
+                    add(&self.rhs[r0 + i], bi);
+                }
             }
         }
     }
 }
 
-/// An assembled system: the lower triangle's values on the pattern, the
-/// right-hand side, and with static condensation what recovers the interior
-/// unknowns after the solve.
+/// The linear system of one mesh and everything that assembles it: the dof
+/// numbering with each dof's role, the lower-triangular pattern, the
+/// assembly plan, and the assembled values, right-hand side and (with static
+/// condensation) what recovers the interior unknowns after a solve.
 ///
-/// [`assemble_into`] reuses the buffers of a previous system: a fresh one per
-/// increment cost 6–11 % of a ten-increment run in page faults and zeroing.
-#[derive(Debug, Clone, Default)]
-pub struct Assembled {
-    pub values: Vec<f64>,
-    pub rhs: Vec<f64>,
-    /// ‖b_f‖ over every free dof of the uncondensed system when `residual`
-    /// (the Newton residual; with condensation it is not ‖rhs‖), else ‖rhs‖.
-    pub rhs_norm: f64,
-    pub interior: Option<InteriorRecovery>,
+/// [`System::assemble`] reuses the buffers of the previous assembly: a fresh
+/// system per increment cost 6–11 % of a ten-increment run in page faults
+/// and zeroing.
+#[derive(Debug, Clone)]
+pub struct System {
+    dofs: DofMap,
+    pattern: SymmetricCsc,
+    plan: AssemblyPlan,
+    values: Vec<f64>,
+    rhs: Vec<f64>,
+    rhs_norm: f64,
+    interior: Option<InteriorRecovery>,
     /// With condensation and `residual`: the uncondensed b on the system rows
     /// and ‖b_I‖² per cell, for `rhs_norm`.
     full_rhs: Vec<f64>,
     interior_sq: Vec<f64>,
 }
 
-impl Assembled {
-    /// Complete a solution `u` of the system (its first `dofs.n_system`
-    /// entries) with the condensed interior unknowns; `prescribed` as given to
-    /// [`assemble`]. Nothing to do without condensation.
-    pub fn recover_interior(&self, mesh: &HighOrderMesh, dofs: &DofMap, prescribed: &[f64], u: &mut [f64]) {
-        if let Some(r) = &self.interior {
-            r.recover(mesh, dofs, prescribed, u);
+impl System {
+    /// The pattern and plan of `dofs` on `mesh`, nothing assembled yet.
+    pub fn new(mesh: &HighOrderMesh, dofs: DofMap) -> System {
+        let pattern = dofs.pattern(mesh);
+        let plan = AssemblyPlan::new(mesh, &dofs, &pattern);
+        System {
+            dofs,
+            pattern,
+            plan,
+            values: Vec::new(),
+            rhs: Vec::new(),
+            rhs_norm: 0.0,
+            interior: None,
+            full_rhs: Vec::new(),
+            interior_sq: Vec::new(),
         }
     }
-}
 
-/// Assemble K_ff (values on `pattern`) and the right-hand side
-/// b_f = −K_fd u_d − R_f on the geometry `coords`, where R is the internal
-/// force when `residual` is set (IIL, CIL, Newton) and zero otherwise (ILE);
-/// with a condensed `dofs`, the Schur complement on the system dofs.
-///
-/// `prescribed[dof]` is the Dirichlet value of each prescribed dof (ignored for
-/// free dofs). `plan` comes from [`AssemblyPlan::new`] on this mesh and
-/// pattern. Fails if an element has a non-positive Jacobian somewhere, or a
-/// singular interior block.
-#[allow(clippy::too_many_arguments)]
-pub fn assemble<K: ElementKernel>(
-    mesh: &HighOrderMesh,
-    coords: &[f64],
-    dofs: &DofMap,
-    pattern: &SymmetricCsc,
-    plan: &AssemblyPlan,
-    kernel: &K,
-    prescribed: &[f64],
-    residual: bool,
-) -> Result<Assembled> {
-    let mut out = Assembled::default();
-    assemble_into(mesh, coords, dofs, pattern, plan, kernel, prescribed, residual, &mut out)?;
-    Ok(out)
+    pub fn dofs(&self) -> &DofMap {
+        &self.dofs
+    }
+
+    /// The lower-triangular pattern of the system ([`DofMap::pattern`]).
+    pub fn pattern(&self) -> &SymmetricCsc {
+        &self.pattern
+    }
+
+    /// The values of the lower triangle on [`System::pattern`].
+    pub fn values(&self) -> &[f64] {
+        &self.values
+    }
+
+    /// The right-hand side on the system rows.
+    pub fn rhs(&self) -> &[f64] {
+        &self.rhs
+    }
+
+    /// ‖b_f‖ over every free dof of the uncondensed system when assembled
+    /// with `residual` (the Newton residual; with condensation it is not
+    /// ‖rhs‖), else ‖rhs‖.
+    pub fn rhs_norm(&self) -> f64 {
+        self.rhs_norm
+    }
+
+    /// Complete a solution `u` of the system (its first `n_system` entries)
+    /// with the condensed interior unknowns; `prescribed` as given to
+    /// [`System::assemble`]. Nothing to do without condensation.
+    pub fn recover_interior(&self, mesh: &HighOrderMesh, prescribed: &[f64], u: &mut [f64]) {
+        if let Some(r) = &self.interior {
+            r.recover(mesh, &self.dofs, prescribed, u);
+        }
+    }
+
+    /// Assemble K_ff and the right-hand side b_f = −K_fd u_d − R_f on the
+    /// geometry `coords`, where R is the internal force when `residual` is
+    /// set (IIL, CIL, Newton) and zero otherwise (ILE); with condensation,
+    /// the Schur complement on the system dofs.
+    ///
+    /// `prescribed[dof]` is the Dirichlet value of each prescribed dof
+    /// (ignored for free dofs). Fails if an element has a non-positive
+    /// Jacobian somewhere, or a singular interior block.
+    pub fn assemble<K: ElementKernel>(
+        &mut self,
+        mesh: &HighOrderMesh,
+        coords: &[f64],
+        kernel: &K,
+        prescribed: &[f64],
+        residual: bool,
+    ) -> Result<()> {
+        let (dim, ndof_e) = (mesh.dim(), mesh.nodes_per_cell() * mesh.dim());
+        let dofs = &self.dofs;
+        let split = dofs.split.as_ref();
+        let stride = split.map_or(0, LocalSplit::stride);
+        // With condensation, the Newton residual is still measured on every
+        // free dof: the uncondensed b on the system rows, and ‖b_I‖² per cell.
+        let measure = residual && split.is_some();
+        let mut interior = match (split, self.interior.take()) {
+            (Some(split), Some(r)) if r.split == *split => Some(r),
+            (Some(split), _) => Some(InteriorRecovery { split: split.clone(), keep: Vec::new() }),
+            (None, _) => None,
+        };
+        let mut none = Vec::new();
+        let keep = zeroed_atomics(interior.as_mut().map_or(&mut none, |r| &mut r.keep), stride * mesh.n_cells());
+        let target = Target {
+            dofs,
+            pattern: &self.pattern,
+            values: zeroed_atomics(&mut self.values, self.pattern.nnz()),
+            rhs: zeroed_atomics(&mut self.rhs, dofs.n_system),
+        };
+        let full_rhs = zeroed_atomics(&mut self.full_rhs, if measure { dofs.n_system } else { 0 });
+        let interior_sq = zeroed_atomics(&mut self.interior_sq, if measure { mesh.n_cells() } else { 0 });
+        for group in &self.plan.colors {
+            group.par_iter().try_for_each_init(
+                || {
+                    let buffers = (vec![0.0; ndof_e * ndof_e], vec![0.0; ndof_e], vec![0.0; ndof_e], vec![0.0; stride]);
+                    (buffers, vec![0.0; ndof_e], kernel.workspace(), CondenseWorkspace::default())
+                },
+                |((ke, re, xe, kept), b, ws, cws), &c| -> Result<()> {
+                    let cell = mesh.cell(c);
+                    for (a, &n) in cell.iter().enumerate() {
+                        xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
+                    }
+                    kernel
+                        .compute(c, xe, ke, if residual { Some(&mut re[..]) } else { None }, ws)
+                        .map_err(|det_j| Error::InvalidElement(format!("cell {c} has a non-positive Jacobian ({det_j:.3e})")))?;
+                    if let Some(split) = split {
+                        if measure {
+                            element_rhs(cell, dim, dofs, ke, Some(re), prescribed, b);
+                            let mut sq = 0.0;
+                            for (k, &bk) in b.iter().enumerate() {
+                                match dofs.role(cell[k / dim] * dim + k % dim) {
+                                    DofRole::Prescribed => {}
+                                    DofRole::System(f) => add(&full_rhs[f], bk),
+                                    DofRole::Interior(_) => sq += bk * bk,
+                                }
+                            }
+                            interior_sq[c].store(sq.to_bits(), Ordering::Relaxed);
+                        }
+                        condense_element(split, ke, residual.then_some(&mut re[..]), kept, cws).map_err(|_| {
+                            Error::InvalidElement(format!("cell {c}: the stiffness of its interior nodes is singular"))
+                        })?;
+                        for (slot, v) in keep[c * stride..(c + 1) * stride].iter().zip(kept.iter()) {
+                            slot.store(v.to_bits(), Ordering::Relaxed);
+                        }
+                    }
+                    element_rhs(cell, dim, dofs, ke, residual.then_some(&re[..]), prescribed, b);
+                    target.add_cell(cell, self.plan.cell_offsets(c), ke, b);
+                    Ok(())
+                },
+            )?;
+        }
+        self.rhs_norm = if measure {
+            (self.full_rhs.iter().map(|v| v * v).sum::<f64>() + self.interior_sq.iter().sum::<f64>()).sqrt()
+        } else {
+            self.rhs.iter().map(|v| v * v).sum::<f64>().sqrt()
+        };
+        self.interior = interior;
+        Ok(())
+    }
 }
 
 /// `v` resized to `n` zeros in parallel (no page faults when it had the room),
@@ -419,87 +571,6 @@ fn zeroed_atomics(v: &mut Vec<f64>, n: usize) -> &[AtomicU64] {
     // f64 is a bit-cast; the exclusive borrow of `v` outlives the view, so
     // nothing else reads or writes it meanwhile.
     unsafe { std::slice::from_raw_parts(v.as_mut_ptr().cast::<AtomicU64>(), n) }
-}
-
-/// [`assemble`] into the buffers of `out` (any earlier system, or default).
-#[allow(clippy::too_many_arguments)]
-pub fn assemble_into<K: ElementKernel>(
-    mesh: &HighOrderMesh,
-    coords: &[f64],
-    dofs: &DofMap,
-    pattern: &SymmetricCsc,
-    plan: &AssemblyPlan,
-    kernel: &K,
-    prescribed: &[f64],
-    residual: bool,
-    out: &mut Assembled,
-) -> Result<()> {
-    let dim = mesh.dim();
-    let npc = mesh.nodes_per_cell();
-    let ndof_e = npc * dim;
-    let split = dofs.split.as_ref();
-    let stride = split.map_or(0, LocalSplit::stride);
-    // With condensation, the Newton residual is still measured on every
-    // free dof: the uncondensed b on the system rows, and ‖b_I‖² per cell.
-    let measure = residual && split.is_some();
-    let mut interior = match (split, out.interior.take()) {
-        (Some(split), Some(r)) if r.split == *split => Some(r),
-        (Some(split), _) => Some(InteriorRecovery { split: split.clone(), keep: Vec::new() }),
-        (None, _) => None,
-    };
-    let mut none = Vec::new();
-    let keep = zeroed_atomics(interior.as_mut().map_or(&mut none, |r| &mut r.keep), stride * mesh.n_cells());
-    let values = zeroed_atomics(&mut out.values, pattern.nnz());
-    let rhs = zeroed_atomics(&mut out.rhs, dofs.n_system);
-    let full_rhs = zeroed_atomics(&mut out.full_rhs, if measure { dofs.n_system } else { 0 });
-    let interior_sq = zeroed_atomics(&mut out.interior_sq, if measure { mesh.n_cells() } else { 0 });
-    for group in &plan.colors {
-        group.par_iter().try_for_each_init(
-            || {
-                let buffers = (vec![0.0; ndof_e * ndof_e], vec![0.0; ndof_e], vec![0.0; ndof_e], vec![0.0; stride]);
-                (buffers, vec![0.0; ndof_e], kernel.workspace(), CondenseWorkspace::default())
-            },
-            |((ke, re, xe, kept), b, ws, cws), &c| -> Result<()> {
-                let cell = mesh.cell(c);
-                for (a, &n) in cell.iter().enumerate() {
-                    xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
-                }
-                kernel
-                    .compute(c, xe, ke, if residual { Some(&mut re[..]) } else { None }, ws)
-                    .map_err(|q| Error::InvalidElement(format!("cell {c} has a non-positive Jacobian ({q:.3e})")))?;
-                if let Some(split) = split {
-                    if measure {
-                        element_rhs(cell, dim, dofs, ke, Some(re), prescribed, b);
-                        let mut sq = 0.0;
-                        for (k, &bk) in b.iter().enumerate() {
-                            match dofs.free[cell[k / dim] * dim + k % dim] {
-                                usize::MAX => {}
-                                f if f < dofs.n_system => add(&full_rhs[f], bk),
-                                _ => sq += bk * bk,
-                            }
-                        }
-                        interior_sq[c].store(sq.to_bits(), Ordering::Relaxed);
-                    }
-                    condense_element(split, ke, residual.then_some(&mut re[..]), kept, cws).map_err(|_| {
-                        Error::InvalidElement(format!("cell {c}: the stiffness of its interior nodes is singular"))
-                    })?;
-                    for (slot, v) in keep[c * stride..(c + 1) * stride].iter().zip(kept.iter()) {
-                        slot.store(v.to_bits(), Ordering::Relaxed);
-                    }
-                }
-                element_rhs(cell, dim, dofs, ke, residual.then_some(&re[..]), prescribed, b);
-                scatter(cell, plan.cell_offsets(c), dim, dofs, pattern, ke, b, values, rhs);
-                Ok(())
-            },
-        )?;
-    }
-    out.rhs_norm = if measure {
-        (out.full_rhs.iter().map(|v| v * v).sum::<f64>() + out.interior_sq.iter().sum::<f64>()).sqrt()
-    } else {
-        out.rhs.iter().map(|v| v * v).sum::<f64>().sqrt()
-    };
-    out.interior = interior;
-    Ok(())
 }
 
 #[cfg(test)]
@@ -542,26 +613,23 @@ mod tests {
         let topo = Topology::new(&lin).unwrap();
         let nodes = NodeSet::new(topo.simplex, 2, NodeSpacing::Optimal);
         let mesh = HighOrderMesh::elevate(&lin, &topo, &nodes, NodeSpacing::Optimal).unwrap();
-        let dofs = DofMap::new(&mesh);
-        let pattern = dofs.pattern(&mesh);
-        let plan = AssemblyPlan::new(&mesh, &dofs, &pattern);
         let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(topo.simplex, 4));
         let kernel = LinearElasticKernel { cache, material: LinearElastic::try_from_young_poisson(1.0, 0.3).unwrap() };
         let prescribed: Vec<f64> = (0..mesh.coords.len()).map(|i| (i as f64 * 0.1).sin()).collect();
         let run = |threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            let a = pool.install(|| assemble(&mesh, &mesh.coords, &dofs, &pattern, &plan, &kernel, &prescribed, false));
-            let a = a.unwrap();
-            (a.values, a.rhs)
+            let mut system = System::new(&mesh, DofMap::new(&mesh));
+            pool.install(|| system.assemble(&mesh, &mesh.coords, &kernel, &prescribed, false)).unwrap();
+            system
         };
         let serial = run(1);
         for _ in 0..3 {
             let par = run(4);
-            assert!(serial.0 == par.0 && serial.1 == par.1, "parallel assembly differs from serial");
+            assert!(serial.values() == par.values() && serial.rhs() == par.rhs(), "parallel assembly differs from serial");
         }
         // And the matrix is the sum of element matrices: K·1 = 0 rows for interior nodes (rigid translation).
-        let ones = vec![1.0; pattern.n];
-        let k1 = pattern.sym_matvec(&serial.0, &ones);
+        let ones = vec![1.0; serial.pattern().n];
+        let k1 = serial.pattern().sym_matvec(serial.values(), &ones);
         assert!(k1.iter().any(|v| v.abs() > 1e-12), "K is not trivially zero");
     }
 }

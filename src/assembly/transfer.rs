@@ -121,15 +121,13 @@ pub fn prolongation(
     for c in 0..fine.n_cells() {
         let (cell, ccell) = (fine.cell(c), coarse.cell(c));
         for (a, &n) in cell.iter().enumerate() {
-            if done[n] || fine_dofs.free[n * dim] >= fine_dofs.n_system {
-                continue;
-            }
+            let Some(r0) = fine_dofs.system_row(n * dim).filter(|_| !done[n]) else { continue };
             done[n] = true;
             for d in 0..dim {
-                let row = &mut rows[fine_dofs.free[n * dim + d]];
+                let row = &mut rows[r0 + d];
                 for (b, &m) in ccell.iter().enumerate() {
-                    let (w, j) = (tab.values[a * nq + b], coarse_dofs.free[m * dim + d]);
-                    if w.abs() > 1e-12 && j < coarse_dofs.n_system {
+                    let w = tab.values[a * nq + b];
+                    if let Some(j) = coarse_dofs.system_row(m * dim + d).filter(|_| w.abs() > 1e-12) {
                         row.push((j as u32, w));
                     }
                 }
@@ -193,8 +191,8 @@ mod tests {
             let mut uc = vec![0.0; coarse.n_free];
             for v in 0..mesh.n_vertices {
                 for d in 0..3 {
-                    if coarse.free[v * 3 + d] != usize::MAX {
-                        uc[coarse.free[v * 3 + d]] = f(mesh.node(v), d);
+                    if let Some(i) = coarse.free_index(v * 3 + d) {
+                        uc[i] = f(mesh.node(v), d);
                     }
                 }
             }
@@ -205,12 +203,12 @@ mod tests {
             let mut checked = 0;
             for c in 0..mesh.n_cells() {
                 let cell = mesh.cell(c);
-                if cell[..4].iter().any(|&v| coarse.free[v * 3] == usize::MAX) {
+                if cell[..4].iter().any(|&v| coarse.free_index(v * 3).is_none()) {
                     continue;
                 }
                 for &n in cell {
                     for d in 0..3 {
-                        let e = uf[dofs.free[n * 3 + d]] - f(mesh.node(n), d);
+                        let e = uf[dofs.free_index(n * 3 + d).unwrap()] - f(mesh.node(n), d);
                         assert!(e.abs() < 1e-12, "p={p} node {n}: error {e:e}");
                         checked += 1;
                     }
@@ -252,8 +250,8 @@ mod tests {
         let mut u2 = vec![0.0; d2.n_free];
         for n in 0..c2.n_nodes() {
             for d in 0..3 {
-                if d2.free[n * 3 + d] != usize::MAX {
-                    u2[d2.free[n * 3 + d]] = f(c2.node(n), d);
+                if let Some(i) = d2.free_index(n * 3 + d) {
+                    u2[i] = f(c2.node(n), d);
                 }
             }
         }
@@ -261,11 +259,11 @@ mod tests {
         levels[0].0.matvec_into(&u2, &mut u4);
         let mut checked = 0;
         for c in 0..mesh.n_cells() {
-            if c2.cell(c).iter().any(|&m| d2.free[m * 3] == usize::MAX) {
+            if c2.cell(c).iter().any(|&m| d2.free_index(m * 3).is_none()) {
                 continue;
             }
             for &n in mesh.cell(c) {
-                let e = u4[dofs.free[n * 3]] - f(mesh.node(n), 0);
+                let e = u4[dofs.free_index(n * 3).unwrap()] - f(mesh.node(n), 0);
                 assert!(e.abs() < 1e-10, "node {n}: {e:e}");
                 checked += 1;
             }

@@ -4,13 +4,13 @@
 use std::time::Instant;
 
 use super::{Stage, Timings};
-use crate::assembly::{assemble_into, multigrid_levels, Assembled, AssemblyPlan, DofMap, ElementKernel};
+use crate::assembly::{multigrid_levels, DofMap, ElementKernel, System};
 use crate::mesh::HighOrderMesh;
 use crate::quality;
 use crate::reference::{LagrangeBasis, NodeSet};
 use crate::solver::{
     DirectOrdering, DirectSolver, ExternalAdapter, FallbackReason, IterativeParams, IterativeSolver, LinearSolver,
-    SolveStats, SolvedBy, SolverChoice, SymmetricCsc, AUTO_DIRECT_MAX_DOFS,
+    SolveStats, SolvedBy, SolverChoice, AUTO_DIRECT_MAX_DOFS,
 };
 use crate::{Error, Result};
 
@@ -190,9 +190,9 @@ fn make_solver(
     choice: SolverChoice,
     ordering: DirectOrdering,
     mesh: &HighOrderMesh,
-    dofs: &DofMap,
-    pattern: &SymmetricCsc,
+    system: &System,
 ) -> Result<Box<dyn LinearSolver>> {
+    let pattern = system.pattern();
     let iterative = match choice {
         SolverChoice::External(host) => return Ok(Box::new(ExternalAdapter::new(host, pattern))),
         SolverChoice::Direct => false,
@@ -203,7 +203,7 @@ fn make_solver(
         return Ok(Box::new(DirectSolver::try_new_with(pattern, ordering)?));
     }
     // The free dofs of a node are consecutive: nodal blocks for the smoother.
-    let levels = multigrid_levels(mesh, dofs);
+    let levels = multigrid_levels(mesh, system.dofs());
     Ok(Box::new(IterativeSolver::try_new(pattern, mesh.dim(), levels, IterativeParams::default())?))
 }
 
@@ -260,7 +260,7 @@ pub fn solve_increments<K: ElementKernel>(
         return Ok(out);
     }
     let start = mesh.coords.clone();
-    let result = step_through(mesh, kernel, ubar, &stepping, &dofs, timings, tick);
+    let result = step_through(mesh, kernel, ubar, &stepping, dofs, timings, tick);
     if result.is_err() {
         mesh.coords.copy_from_slice(&start);
     }
@@ -304,18 +304,19 @@ fn step_through<K: ElementKernel>(
     kernel: &K,
     ubar: &[f64],
     stepping: &Stepping,
-    dofs: &DofMap,
+    dofs: DofMap,
     timings: &mut Timings,
     tick: &mut dyn FnMut(Stage, usize, usize) -> Result<()>,
 ) -> Result<IncrementsReport> {
-    let mut out = IncrementsReport::new(dofs);
+    let mut out = IncrementsReport::new(&dofs);
+    let n_free = dofs.n_free;
     let mut ctx = IncrementContext::new(mesh, kernel, stepping, dofs, timings)?;
     out.linear_solver = ctx.solver.name();
-    let mut walk = Walk::new(stepping, dofs.n_free, mesh);
+    let mut walk = Walk::new(stepping, n_free, mesh);
     let mut bufs = Buffers {
         step: vec![0.0; ubar.len()],
-        u: vec![0.0; dofs.n_free],
-        du: vec![0.0; dofs.n_free],
+        u: vec![0.0; n_free],
+        du: vec![0.0; n_free],
         saved: mesh.coords.clone(),
     };
     // The sampled check after each increment, the certified one after the
@@ -537,10 +538,7 @@ struct Buffers {
 /// What one increment needs besides the geometry.
 struct IncrementContext<'a, K> {
     /// The last assembled system; its buffers are reused.
-    system: Assembled,
-    dofs: &'a DofMap,
-    pattern: SymmetricCsc,
-    plan: AssemblyPlan,
+    system: System,
     solver: Box<dyn LinearSolver>,
     kernel: &'a K,
     residual: bool,
@@ -549,28 +547,24 @@ struct IncrementContext<'a, K> {
 }
 
 impl<'a, K: ElementKernel> IncrementContext<'a, K> {
-    /// The sparsity pattern, assembly plan, linear solver and validity check
-    /// of the whole run, set up once (timed as `setup`).
+    /// The system (pattern and assembly plan), linear solver and validity
+    /// check of the whole run, set up once (timed as `setup`).
     fn new(
         mesh: &HighOrderMesh,
         kernel: &'a K,
         stepping: &Stepping,
-        dofs: &'a DofMap,
+        dofs: DofMap,
         timings: &mut Timings,
     ) -> Result<IncrementContext<'a, K>> {
         let t = Instant::now();
-        let pattern = dofs.pattern(mesh);
-        let plan = AssemblyPlan::new(mesh, dofs, &pattern);
-        let solver = make_solver(stepping.solver.clone(), stepping.direct_ordering, mesh, dofs, &pattern)?;
+        let system = System::new(mesh, dofs);
+        let solver = make_solver(stepping.solver.clone(), stepping.direct_ordering, mesh, &system)?;
         let check = stepping.adaptive.then(|| {
             quality::ValidityCheck::new(LagrangeBasis::new(&NodeSet::new(mesh.simplex, mesh.order, mesh.spacing)))
         });
         timings.setup += t.elapsed().as_secs_f64();
         Ok(IncrementContext {
-            system: Assembled::default(),
-            dofs,
-            pattern,
-            plan,
+            system,
             solver,
             kernel,
             residual: stepping.residual || stepping.newton.is_some(),
@@ -605,32 +599,18 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
         timings: &mut Timings,
         out: &mut IncrementsReport,
     ) -> std::result::Result<f64, Failure> {
-        let dofs = self.dofs;
         let t = Instant::now();
         // det J ≤ 0 here is at the start geometry: no split of this increment helps.
-        let system = &mut self.system;
-        assemble_into(
-            mesh,
-            &mesh.coords,
-            dofs,
-            &self.pattern,
-            &self.plan,
-            self.kernel,
-            &bufs.step,
-            self.residual,
-            system,
-        )
-        .map_err(|e| match e {
+        self.system
+            .assemble(mesh, &mesh.coords, self.kernel, &bufs.step, self.residual)
+            .map_err(|e| match e {
             Error::InvalidElement(detail) => Failure::AtStart(detail),
             e => Failure::Fatal(e),
         })?;
         timings.assembly += t.elapsed().as_secs_f64();
-        let r0 = system.rhs_norm.max(f64::MIN_POSITIVE);
+        let r0 = self.system.rhs_norm().max(f64::MIN_POSITIVE);
         self.solve(mesh, &bufs.step, &mut bufs.u, timings, out)?;
-        for (dof, x) in mesh.coords.iter_mut().enumerate() {
-            let f = dofs.free[dof];
-            *x += if f == usize::MAX { bufs.step[dof] } else { bufs.u[f] };
-        }
+        self.system.dofs().add_to(&mut mesh.coords, &bufs.u, Some(&bufs.step));
         Ok(r0)
     }
 
@@ -645,12 +625,12 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
         out: &mut IncrementsReport,
     ) -> std::result::Result<(), Failure> {
         let t = Instant::now();
-        let n = self.dofs.n_system;
         let system = &self.system;
+        let n = system.dofs().n_system;
         let stats =
-            self.solver.solve(&self.pattern, &system.values, &system.rhs, &mut x[..n]).map_err(Failure::Fatal)?;
+            self.solver.solve(system.pattern(), system.values(), system.rhs(), &mut x[..n]).map_err(Failure::Fatal)?;
         out.record_solve(&stats);
-        system.recover_interior(mesh, self.dofs, prescribed, x);
+        system.recover_interior(mesh, prescribed, x);
         timings.solve += t.elapsed().as_secs_f64();
         Ok(())
     }
@@ -666,21 +646,18 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
         out: &mut IncrementsReport,
     ) -> std::result::Result<(), Failure> {
         let Some((tolerance, max_iterations)) = self.newton else { return Ok(()) };
-        let dofs = self.dofs;
         let zero = vec![0.0; bufs.step.len()];
         let mut hist = vec![1.0];
         let mut converged = false;
         for _ in 0..max_iterations {
             let t = Instant::now();
-            let system = &mut self.system;
-            let assembled =
-                assemble_into(mesh, &mesh.coords, dofs, &self.pattern, &self.plan, self.kernel, &zero, true, system);
+            let assembled = self.system.assemble(mesh, &mesh.coords, self.kernel, &zero, true);
             timings.assembly += t.elapsed().as_secs_f64();
             if let Err(e) = assembled {
                 out.newton_history.push(hist);
                 return Err(e.into());
             }
-            let ratio = system.rhs_norm / r0;
+            let ratio = self.system.rhs_norm() / r0;
             hist.push(ratio);
             if !ratio.is_finite() {
                 out.newton_history.push(hist);
@@ -696,12 +673,7 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
             }
             bufs.du.fill(0.0);
             self.solve(mesh, &zero, &mut bufs.du, timings, out)?;
-            for (dof, x) in mesh.coords.iter_mut().enumerate() {
-                let f = dofs.free[dof];
-                if f != usize::MAX {
-                    *x += bufs.du[f];
-                }
-            }
+            self.system.dofs().add_to(&mut mesh.coords, &bufs.du, None);
         }
         let last = *hist.last().expect("history starts with 1");
         out.newton_history.push(hist);

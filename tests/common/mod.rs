@@ -2,7 +2,7 @@
 //! system of a straight high-order mesh.
 #![allow(dead_code)]
 
-use hocurve::assembly::{assemble, Assembled, AssemblyPlan, DofMap, LinearElasticKernel};
+use hocurve::assembly::{DofMap, LinearElasticKernel, System};
 use hocurve::cases::Case;
 use hocurve::mapping::ElementCache;
 use hocurve::material::LinearElastic;
@@ -16,9 +16,17 @@ use hocurve::solver::SymmetricCsc;
 /// smooth prescribed field; with `residual`, assembled as for IIL/Newton.
 pub struct StraightSystem {
     pub mesh: HighOrderMesh,
-    pub dofs: DofMap,
-    pub pattern: SymmetricCsc,
-    pub system: Assembled,
+    pub system: System,
+}
+
+impl StraightSystem {
+    pub fn dofs(&self) -> &DofMap {
+        self.system.dofs()
+    }
+
+    pub fn pattern(&self) -> &SymmetricCsc {
+        self.system.pattern()
+    }
 }
 
 pub fn straight_system(case: &Case, p: usize, condensed: bool, residual: bool) -> StraightSystem {
@@ -27,13 +35,12 @@ pub fn straight_system(case: &Case, p: usize, condensed: bool, residual: bool) -
     let nodes = NodeSet::new(topo.simplex, p, NodeSpacing::Optimal);
     let mesh = HighOrderMesh::elevate(&lin, &topo, &nodes, NodeSpacing::Optimal).unwrap();
     let dofs = if condensed { DofMap::condensed(&mesh) } else { DofMap::new(&mesh) };
-    let pattern = dofs.pattern(&mesh);
     let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(topo.simplex, 2 * p));
     let kernel = LinearElasticKernel { cache, material: LinearElastic::try_from_young_poisson(1.0, 0.45).unwrap() };
     let prescribed: Vec<f64> = (0..mesh.coords.len()).map(|i| 0.01 * (i as f64 * 0.1).sin()).collect();
-    let plan = AssemblyPlan::new(&mesh, &dofs, &pattern);
-    let system = assemble(&mesh, &mesh.coords, &dofs, &pattern, &plan, &kernel, &prescribed, residual).unwrap();
-    StraightSystem { mesh, dofs, pattern, system }
+    let mut system = System::new(&mesh, dofs);
+    system.assemble(&mesh, &mesh.coords, &kernel, &prescribed, residual).unwrap();
+    StraightSystem { mesh, system }
 }
 
 /// Unit square split into 2n² triangles, interior vertices jittered
