@@ -45,4 +45,4 @@ pub mod ffi;
 pub mod io;
 
 pub use curve::{curve, CurveOptions, CurveReport, CurvedMesh, Formulation};
-pub use error::{Error, Result};
+pub use error::{Error, Result, SolverFailure};

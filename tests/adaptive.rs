@@ -109,7 +109,10 @@ fn a_newton_failure_steps_back_and_halves_the_increment() {
     let (case, opts) = newton_case(1e-4);
     let e = run(&case, &CurveOptions { adaptive: Some(false), ..opts.clone() }).unwrap_err();
     println!("adaptive off: {e}");
-    assert!(matches!(&e, Error::Solver(m) if m.contains("did not converge") && !m.contains("limit")), "{e}");
+    assert!(
+        matches!(&e, Error::Solver { message: m, .. } if m.contains("did not converge") && !m.contains("limit")),
+        "{e}"
+    );
     let c = run(&case, &opts).unwrap();
     println!("adaptive on: {}", describe(&c));
     let r = &c.report;
@@ -143,13 +146,16 @@ fn the_split_limit_fails_clearly_and_leaves_the_mesh_unchanged() {
     s.set_adaptive(Some(true), 0).unwrap();
     let e = s.run(1).unwrap_err();
     println!("max_splits 0: {e}");
-    assert!(matches!(&e, Error::Solver(m) if m.contains("did not converge") && m.contains("limit")), "{e}");
+    assert!(
+        matches!(&e, Error::Solver { message: m, .. } if m.contains("did not converge") && m.contains("limit")),
+        "{e}"
+    );
     assert_eq!(s.mesh().coords, before, "the mesh must be unchanged");
     assert_eq!(s.report().unwrap().load_fractions, report_before);
     s.set_adaptive(Some(true), 1).unwrap();
     let e = s.run(1).unwrap_err();
     println!("max_splits 1: {e}");
-    assert!(matches!(&e, Error::Solver(m) if m.contains("halving the step 1 times")), "{e}");
+    assert!(matches!(&e, Error::Solver { message: m, .. } if m.contains("halving the step 1 times")), "{e}");
     assert_eq!(s.mesh().coords, before);
     assert!(s.set_adaptive(None, 31).is_err());
 }

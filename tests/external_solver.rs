@@ -163,7 +163,7 @@ fn host_errors_and_non_finite_solutions_fail_the_run_and_change_nothing() {
     for (solver, expect) in [(ExternalSolver::new(failing), "status 7"), (ExternalSolver::new(nan), "non-finite")] {
         s.set_linear_solver(Some(solver));
         let e = s.run(2).unwrap_err();
-        assert!(matches!(e, Error::Solver(_)), "{e}");
+        assert!(matches!(e, Error::Solver { .. }), "{e}");
         let m = e.to_string();
         assert!(m.contains("external linear solver") && m.contains(expect), "{m}");
         assert_eq!(before, s.mesh().coords, "{m}: mesh changed");

@@ -98,7 +98,7 @@ fn newton_that_cannot_converge_says_so() {
         ..Default::default()
     };
     let e = curve(&mesh, &case.projector, &opts, &mut |_| true).unwrap_err();
-    assert!(matches!(&e, Error::Solver(m) if m.contains("did not converge")), "{e}");
+    assert!(matches!(&e, Error::Solver { message: m, .. } if m.contains("did not converge")), "{e}");
 }
 
 #[test]

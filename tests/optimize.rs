@@ -65,7 +65,7 @@ fn optimisation_makes_valid_a_mesh_that_adaptive_stepping_cannot_keep_valid() {
     let (mesh, projector) = coarse_sphere();
     // Without the optimisation stage, ILE with adaptive stepping gives up.
     match run(&mesh, &projector, &p3(false)) {
-        Err(Error::InvalidElement(m)) => assert!(m.contains("adaptive stepping"), "{m}"),
+        Err(Error::InvalidElement { message: m, .. }) => assert!(m.contains("adaptive stepping"), "{m}"),
         other => panic!("expected the elastic stage to fail, got {:?}", other.map(|c| c.report.quality)),
     }
     let c = run(&mesh, &projector, &p3(true)).unwrap();
@@ -127,7 +127,10 @@ fn sliding_boundary_nodes_on_the_surface_makes_valid_what_interior_moves_cannot(
     let mut opts = CurveOptions { order: 2, repair: false, ..Default::default() };
     (opts.optimize.slide, opts.optimize.split) = (false, false);
     match run(&mesh, &projector, &opts) {
-        Err(Error::InvalidElement(m)) => assert!(m.contains("after optimisation"), "{m}"),
+        Err(Error::InvalidElement { cell: Some(c), message: m }) => {
+            // The failing cell is a field of the error, and the message names the same one.
+            assert!(m.contains("after optimisation") && m.starts_with(&format!("cell {c} ")), "{m}")
+        }
         other => panic!("expected interior moves alone to fail, got {:?}", other.map(|c| c.report.quality)),
     }
     opts.optimize.slide = true;

@@ -58,7 +58,9 @@ fn opts(repair: bool) -> CurveOptions {
 fn a_mesh_that_fails_to_curve_curves_after_the_repair() {
     let (mesh, projector) = load("sphere_cavity_cap.msh", 0.70);
     match curve(&mesh, &projector, &opts(false), &mut |_| true) {
-        Err(Error::InvalidElement(m)) => assert!(m.contains("after halving the step 6 times"), "{m}"),
+        Err(Error::InvalidElement { cell: Some(c), message: m }) => {
+            assert!(m.contains("after halving the step 6 times") && m.starts_with(&format!("cell {c} ")), "{m}")
+        }
         other => panic!("expected the run to fail without repair, got {:?}", other.map(|c| c.report.quality)),
     }
     // By default the bad cell, a cap at 54°, is removed as a cap.
@@ -118,7 +120,7 @@ fn cells_inside_the_shell_of_a_sphere_cavity_are_found_and_removed() {
     assert!(r.mesh.facets.iter().all(|&v| on_sphere(&r.mesh, v, radius)));
 
     // Curving fails without the repair and succeeds with it.
-    assert!(matches!(curve(&mesh, &projector, &opts(false), &mut |_| true), Err(Error::InvalidElement(_))));
+    assert!(matches!(curve(&mesh, &projector, &opts(false), &mut |_| true), Err(Error::InvalidElement { .. })));
     let c = curve(&mesh, &projector, &opts(true), &mut |_| true).unwrap();
     assert_eq!((c.report.cells, c.report.quality.n_certified_invalid), (13, 0));
     assert_eq!(c.report.repair, s);

@@ -277,7 +277,8 @@ impl AssemblyPlan {
             let cell = mesh.cell(c);
             for (ra, &na) in cell.iter().enumerate() {
                 for (cb, &nb) in cell.iter().enumerate() {
-                    if let (true, Some(r0), Some(s0)) = (na > nb, dofs.system_row(na * dim), dofs.system_row(nb * dim)) {
+                    if let (true, Some(r0), Some(s0)) = (na > nb, dofs.system_row(na * dim), dofs.system_row(nb * dim))
+                    {
                         let k = pattern.position(r0, s0).expect("pattern covers every cell coupling");
                         out[ra * npc + cb] = (k - pattern.col_ptr[s0]) as u32;
                     }
@@ -518,9 +519,14 @@ impl System {
                     for (a, &n) in cell.iter().enumerate() {
                         xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
                     }
-                    kernel
-                        .compute(c, xe, ke, if residual { Some(&mut re[..]) } else { None }, ws)
-                        .map_err(|det_j| Error::InvalidElement(format!("cell {c} has a non-positive Jacobian ({det_j:.3e})")))?;
+                    kernel.compute(c, xe, ke, if residual { Some(&mut re[..]) } else { None }, ws).map_err(
+                        |det_j| {
+                            Error::invalid_element(
+                                Some(c),
+                                format!("cell {c} has a non-positive Jacobian ({det_j:.3e})"),
+                            )
+                        },
+                    )?;
                     if let Some(split) = split {
                         if measure {
                             element_rhs(cell, dim, dofs, ke, Some(re), prescribed, b);
@@ -535,7 +541,10 @@ impl System {
                             interior_sq[c].store(sq.to_bits(), Ordering::Relaxed);
                         }
                         condense_element(split, ke, residual.then_some(&mut re[..]), kept, cws).map_err(|_| {
-                            Error::InvalidElement(format!("cell {c}: the stiffness of its interior nodes is singular"))
+                            Error::invalid_element(
+                                Some(c),
+                                format!("cell {c}: the stiffness of its interior nodes is singular"),
+                            )
                         })?;
                         for (slot, v) in keep[c * stride..(c + 1) * stride].iter().zip(kept.iter()) {
                             slot.store(v.to_bits(), Ordering::Relaxed);
@@ -625,7 +634,10 @@ mod tests {
         let serial = run(1);
         for _ in 0..3 {
             let par = run(4);
-            assert!(serial.values() == par.values() && serial.rhs() == par.rhs(), "parallel assembly differs from serial");
+            assert!(
+                serial.values() == par.values() && serial.rhs() == par.rhs(),
+                "parallel assembly differs from serial"
+            );
         }
         // And the matrix is the sum of element matrices: K·1 = 0 rows for interior nodes (rigid translation).
         let ones = vec![1.0; serial.pattern().n];

@@ -19,7 +19,7 @@ use crate::quadrature::simplex_rule;
 use crate::quality::{self, ElementQuality, MeshQuality};
 use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
 use crate::solver::{DirectOrdering, FallbackReason, SolvedBy, SolverChoice};
-use crate::{Error, Result};
+use crate::{Error, Result, SolverFailure};
 
 mod stepping;
 
@@ -487,11 +487,14 @@ impl Run<'_> {
             stop.restarted = restarted;
             if q.n_certified_invalid > 0 {
                 let c = certified.iter().position(|c| c.verdict == quality::Verdict::Invalid).unwrap_or(0);
-                return Err(Error::InvalidElement(format!(
+                return Err(Error::invalid_element(
+                    Some(c),
+                    format!(
                     "cell {c} is inverted (certified: det J <= 0 somewhere in it) after optimisation, with {} cells \
                      invalid in all; the elastic stage had stopped at load {:.4}: {}",
                     q.n_certified_invalid, stop.load, stop.detail
-                )));
+                ),
+                ));
             }
         }
         Ok(Optimised { mesh, straight, cell_quality, quality: q, optimization, input_cell, solved })
@@ -631,7 +634,10 @@ impl Optimiser<'_> {
     fn finish(&self, mut mesh: HighOrderMesh, certified: Option<Vec<quality::CertifiedJacobian>>) -> Result<Finished> {
         let mut straight = self.straight.to_vec();
         if let Some(i) = mesh.coords.iter().position(|x| !x.is_finite()) {
-            return Err(Error::Solver(format!("the solution is not finite at node {}", i / mesh.dim())));
+            return Err(Error::solver(
+                SolverFailure::NonFinite,
+                format!("the solution is not finite at node {}", i / mesh.dim()),
+            ));
         }
         // Q1, Q2 against the straight mesh's elements (the curving may move vertices).
         let mut cell_quality = quality::cell_qualities(self.cache, &mesh.coords, Some(&straight), &mesh.cells, self.ti);

@@ -12,7 +12,7 @@ use crate::solver::{
     DirectOrdering, DirectSolver, ExternalAdapter, FallbackReason, IterativeParams, IterativeSolver, LinearSolver,
     SolveStats, SolvedBy, SolverChoice, AUTO_DIRECT_MAX_DOFS,
 };
-use crate::{Error, Result};
+use crate::{Error, Result, SolverFailure};
 
 /// How the load increments are driven (paper Table 1).
 #[derive(Debug, Clone, PartialEq)]
@@ -281,16 +281,20 @@ enum Failure {
         cell: Option<usize>,
         detail: String,
     },
-    /// The assembly failed on the geometry at the start of the increment.
-    AtStart(String),
+    /// The assembly failed on the geometry at the start of the increment
+    /// (at `cell` when known).
+    AtStart {
+        cell: Option<usize>,
+        detail: String,
+    },
     Fatal(Error),
 }
 
 impl From<Error> for Failure {
     fn from(e: Error) -> Failure {
         match e {
-            Error::InvalidElement(detail) => {
-                Failure::Retry { reason: StepBackReason::SampledInvalid, cell: None, detail }
+            Error::InvalidElement { cell, message } => {
+                Failure::Retry { reason: StepBackReason::SampledInvalid, cell, detail: message }
             }
             e => Failure::Fatal(e),
         }
@@ -423,26 +427,23 @@ impl Walk {
             Ok(Some(c)) if certified && !self.certify_all => self.restart(inc, Some(c), mesh, out),
             Ok(_) => self.accept(&bufs.u, inc, out),
             Err(Failure::Fatal(e)) => return Err(e),
-            Err(Failure::AtStart(detail)) if self.finish && self.certify_all => stop(
+            Err(Failure::AtStart { cell, detail }) if self.finish && self.certify_all => stop(
                 out,
-                ElasticStop {
-                    load: inc.from,
-                    reason: StepBackReason::SampledInvalid,
-                    cell: None,
-                    detail,
-                    restarted: false,
-                },
+                ElasticStop { load: inc.from, reason: StepBackReason::SampledInvalid, cell, detail, restarted: false },
             ),
-            Err(Failure::AtStart(detail)) if !self.adaptive || self.certify_all => {
-                return Err(Error::InvalidElement(format!(
-                    "{detail} in increment {} of {}; try more increments or another Poisson ratio",
-                    inc.k + 1,
-                    self.increments
-                )))
+            Err(Failure::AtStart { cell, detail }) if !self.adaptive || self.certify_all => {
+                return Err(Error::invalid_element(
+                    cell,
+                    format!(
+                        "{detail} in increment {} of {}; try more increments or another Poisson ratio",
+                        inc.k + 1,
+                        self.increments
+                    ),
+                ))
             }
             // An earlier increment left det J ≤ 0 at a quadrature point of
             // the assembly between the points of the sampled check.
-            Err(Failure::AtStart(_)) => self.restart(inc, None, mesh, out),
+            Err(Failure::AtStart { cell, .. }) => self.restart(inc, cell, mesh, out),
             Err(Failure::Retry { reason, cell, detail }) => {
                 mesh.coords.copy_from_slice(&bufs.saved);
                 return self.split(inc, reason, cell, detail, out);
@@ -486,7 +487,7 @@ impl Walk {
             return Ok(());
         }
         if self.depth >= self.splits {
-            return Err(self.limit_error(inc, reason, &detail));
+            return Err(self.limit_error(inc, reason, cell, &detail));
         }
         out.step_backs.push(StepBack { load: inc.from, step: inc.h, reason, cell });
         self.depth += 1;
@@ -495,7 +496,7 @@ impl Walk {
     }
 
     /// The error of `inc`, rejected for `reason` when it cannot be split any more.
-    fn limit_error(&self, inc: &Increment, reason: StepBackReason, detail: &str) -> Error {
+    fn limit_error(&self, inc: &Increment, reason: StepBackReason, cell: Option<usize>, detail: &str) -> Error {
         let (increments, splits, from) = (self.increments, self.splits, inc.from);
         let mut place = format!("in increment {} of {increments}", inc.k + 1);
         if self.adaptive {
@@ -505,14 +506,21 @@ impl Walk {
             );
         }
         match reason {
-            StepBackReason::NewtonFailed => {
-                Error::Solver(format!("{detail} {place}; try more increments, or the CIL or ILE formulation"))
+            StepBackReason::NewtonFailed => Error::solver(
+                SolverFailure::NotConverged,
+                format!("{detail} {place}; try more increments, or the CIL or ILE formulation"),
+            ),
+            _ if self.adaptive => Error::invalid_element(
+                cell,
+                format!(
+                    "{detail} {place}; try more increments or another Poisson ratio, or turn adaptive stepping off \
+                     to get the mesh with its invalid cells reported (a cell no step keeps valid, e.g. a kept \
+                     boundary cap)"
+                ),
+            ),
+            _ => {
+                Error::invalid_element(cell, format!("{detail} {place}; try more increments or another Poisson ratio"))
             }
-            _ if self.adaptive => Error::InvalidElement(format!(
-                "{detail} {place}; try more increments or another Poisson ratio, or turn adaptive stepping off to \
-                 get the mesh with its invalid cells reported (a cell no step keeps valid, e.g. a kept boundary cap)"
-            )),
-            _ => Error::InvalidElement(format!("{detail} {place}; try more increments or another Poisson ratio")),
         }
     }
 }
@@ -601,10 +609,8 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
     ) -> std::result::Result<f64, Failure> {
         let t = Instant::now();
         // det J ≤ 0 here is at the start geometry: no split of this increment helps.
-        self.system
-            .assemble(mesh, &mesh.coords, self.kernel, &bufs.step, self.residual)
-            .map_err(|e| match e {
-            Error::InvalidElement(detail) => Failure::AtStart(detail),
+        self.system.assemble(mesh, &mesh.coords, self.kernel, &bufs.step, self.residual).map_err(|e| match e {
+            Error::InvalidElement { cell, message } => Failure::AtStart { cell, detail: message },
             e => Failure::Fatal(e),
         })?;
         timings.assembly += t.elapsed().as_secs_f64();

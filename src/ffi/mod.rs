@@ -392,8 +392,8 @@ fn status_of(e: &Error, mesh_context: bool) -> HocStatus {
         Error::InvalidInput(_) if mesh_context => HOC_ERROR_INVALID_MESH,
         Error::InvalidInput(_) => HOC_ERROR_INVALID_ARGUMENT,
         Error::Projection(_) => HOC_ERROR_PROJECTION,
-        Error::Solver(_) => HOC_ERROR_SOLVER,
-        Error::InvalidElement(_) => HOC_ERROR_INVALID_ELEMENT,
+        Error::Solver { .. } => HOC_ERROR_SOLVER,
+        Error::InvalidElement { .. } => HOC_ERROR_INVALID_ELEMENT,
         Error::Io(_) => HOC_ERROR_IO,
         Error::Cancelled => HOC_ERROR_CANCELLED,
     }

@@ -15,7 +15,7 @@
 use rayon::prelude::*;
 
 use super::SymmetricCsc;
-use crate::{Error, Result};
+use crate::{Error, Result, SolverFailure};
 
 /// y = A x for some fixed symmetric matrix A.
 pub trait Operator: Sync {
@@ -98,7 +98,10 @@ impl BlockSym32 {
     pub fn try_new(pattern: &SymmetricCsc, b: usize) -> Result<BlockSym32> {
         let n = pattern.n;
         if !(1..=3).contains(&b) || !n.is_multiple_of(b) {
-            return Err(Error::Solver(format!("block matrix: block size {b} does not divide {n}")));
+            return Err(Error::solver(
+                SolverFailure::Setup,
+                format!("block matrix: block size {b} does not divide {n}"),
+            ));
         }
         let n_blocks = n / b;
         // Upper block rows: the coupled nodes I ≥ J of column J·b.
@@ -123,7 +126,10 @@ impl BlockSym32 {
                         })
                 });
             if !ok {
-                return Err(Error::Solver(format!("block matrix: column {} is not in nodal-block layout", j * b)));
+                return Err(Error::solver(
+                    SolverFailure::Setup,
+                    format!("block matrix: column {} is not in nodal-block layout", j * b),
+                ));
             }
         }
         // Lower block rows: transpose of the strictly upper part.
@@ -137,7 +143,10 @@ impl BlockSym32 {
         let up = BlockRows::from_lists(&upper, bb);
         let lo = BlockRows::from_lists(&lower, bb);
         if up.col.len() >= u32::MAX as usize {
-            return Err(Error::Solver(format!("block matrix: {} blocks do not fit 32-bit indices", up.col.len())));
+            return Err(Error::solver(
+                SolverFailure::Setup,
+                format!("block matrix: {} blocks do not fit 32-bit indices", up.col.len()),
+            ));
         }
         let lo_src: Vec<u32> = lower
             .par_iter()

@@ -86,7 +86,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side, Spec};
 
 use super::SymmetricCsc;
-use crate::{Error, Result};
+use crate::{Error, Result, SolverFailure};
 
 /// A symbolic Cholesky analysis reusable for every matrix on one pattern.
 pub struct SparseCholesky {
@@ -118,7 +118,7 @@ impl SparseCholesky {
             None => SymmetricOrdering::Amd,
         };
         let symbolic = factorize_symbolic_cholesky(sym, Side::Lower, ord, Default::default())
-            .map_err(|e| Error::Solver(format!("symbolic Cholesky analysis failed: {e:?}")))?;
+            .map_err(|e| Error::solver(SolverFailure::Setup, format!("symbolic Cholesky analysis failed: {e:?}")))?;
         drop(nd);
         // faer 0.24's threaded sparse Cholesky is slower than the sequential one on
         // our matrices, so factor sequentially.
@@ -151,11 +151,11 @@ impl SparseCholesky {
         let mut l_values = Vec::new();
         l_values
             .try_reserve_exact(self.symbolic.len_val())
-            .map_err(|_| Error::Solver("out of memory for the Cholesky factor".into()))?;
+            .map_err(|_| Error::solver(SolverFailure::OutOfMemory, "out of memory for the Cholesky factor"))?;
         l_values.resize(self.symbolic.len_val(), 0.0);
         let params: Spec<LltParams, f64> = Default::default();
         let mut mem = MemBuffer::try_new(self.symbolic.factorize_numeric_llt_scratch::<f64>(self.par, params))
-            .map_err(|_| Error::Solver("out of memory for the Cholesky workspace".into()))?;
+            .map_err(|_| Error::solver(SolverFailure::OutOfMemory, "out of memory for the Cholesky workspace"))?;
         self.symbolic
             .factorize_numeric_llt(
                 &mut l_values,
@@ -166,7 +166,12 @@ impl SparseCholesky {
                 MemStack::new(&mut mem),
                 params,
             )
-            .map_err(|e| Error::Solver(format!("the stiffness matrix is not positive definite ({e:?})")))?;
+            .map_err(|e| {
+                Error::solver(
+                    SolverFailure::NotPositiveDefinite,
+                    format!("the stiffness matrix is not positive definite ({e:?})"),
+                )
+            })?;
         Ok(l_values)
     }
 
@@ -174,7 +179,7 @@ impl SparseCholesky {
     pub fn try_solve_in_place(&self, l_values: &[f64], rhs: &mut [f64]) -> Result<()> {
         let llt = LltRef::new(&self.symbolic, l_values);
         let mut solve_mem = MemBuffer::try_new(self.symbolic.solve_in_place_scratch::<f64>(1, self.par))
-            .map_err(|_| Error::Solver("out of memory for the solve workspace".into()))?;
+            .map_err(|_| Error::solver(SolverFailure::OutOfMemory, "out of memory for the solve workspace"))?;
         let n = rhs.len();
         let rhs_mat = MatMut::from_column_major_slice_mut(rhs, n, 1);
         llt.solve_in_place_with_conj(Conj::No, rhs_mat, self.par, MemStack::new(&mut solve_mem));
@@ -299,7 +304,7 @@ pub fn nested_dissection(pattern: &SymmetricCsc) -> Result<(Vec<usize>, Vec<usiz
         return Ok((Vec::new(), Vec::new()));
     }
     if nn > i32::MAX as usize {
-        return Err(Error::Solver("graph too large for METIS (32-bit indices)".into()));
+        return Err(Error::solver(SolverFailure::Setup, "graph too large for METIS (32-bit indices)"));
     }
     // Node graph, both triangles, no self loops: node k's column is dof b·k;
     // its off-diagonal rows come in groups of b (one per neighbour node).
@@ -320,7 +325,7 @@ pub fn nested_dissection(pattern: &SymmetricCsc) -> Result<(Vec<usize>, Vec<usiz
     }
     let n_adj: usize = xadj.iter().map(|&d| d as usize).sum();
     if n_adj > i32::MAX as usize {
-        return Err(Error::Solver("graph too large for METIS (32-bit indices)".into()));
+        return Err(Error::solver(SolverFailure::Setup, "graph too large for METIS (32-bit indices)"));
     }
     for k in 0..nn {
         xadj[k + 1] += xadj[k];
@@ -395,6 +400,9 @@ mod tests {
         v[0] = -2.0;
         let chol = SparseCholesky::try_analyse(&a).unwrap();
         let mut b = vec![1.0; 5];
-        assert!(matches!(chol.try_factor_solve_in_place(&a, &v, &mut b), Err(Error::Solver(_))));
+        assert!(matches!(
+            chol.try_factor_solve_in_place(&a, &v, &mut b),
+            Err(Error::Solver { kind: SolverFailure::NotPositiveDefinite, .. })
+        ));
     }
 }

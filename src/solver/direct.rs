@@ -5,7 +5,7 @@ use super::{
     try_lu_solve_in_place, DirectOrdering, FallbackReason, LinearSolver, SolveStats, SolvedBy, SparseCholesky,
 };
 use crate::sparse::SymmetricCsc;
-use crate::{Error, Result};
+use crate::{Error, Result, SolverFailure};
 
 /// Sparse Cholesky with the symbolic analysis done once; if a matrix is not
 /// positive definite (a CIL or Newton tangent can lose definiteness), sparse LU.
@@ -37,7 +37,7 @@ impl LinearSolver for DirectSolver {
     fn solve(&mut self, pattern: &SymmetricCsc, values: &[f64], rhs: &[f64], x: &mut [f64]) -> Result<SolveStats> {
         x.copy_from_slice(rhs);
         match self.chol.try_factor_solve_in_place(pattern, values, x) {
-            Err(Error::Solver(_)) => {
+            Err(Error::Solver { kind: SolverFailure::NotPositiveDefinite, .. }) => {
                 x.copy_from_slice(rhs);
                 try_lu_solve_in_place(pattern, values, x)?;
                 Ok(SolveStats {

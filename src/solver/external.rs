@@ -11,7 +11,7 @@ use std::fmt;
 use std::sync::Arc;
 
 use super::{LinearSolver, SolveStats, SolvedBy, SymmetricCsc};
-use crate::{Error, Result};
+use crate::{Error, Result, SolverFailure};
 
 /// A full symmetric `n`×`n` matrix in CSR form, borrowed for one solve.
 ///
@@ -183,25 +183,30 @@ impl LinearSolver for ExternalAdapter {
 
     fn solve(&mut self, pattern: &SymmetricCsc, values: &[f64], rhs: &[f64], x: &mut [f64]) -> Result<SolveStats> {
         if pattern.n != self.csr.n || values.len() != pattern.nnz() {
-            return Err(Error::Solver(format!(
-                "the external linear solver was set up for {} unknowns, got a system of {} with {} entries",
-                self.csr.n,
-                pattern.n,
-                values.len()
-            )));
+            return Err(Error::solver(
+                SolverFailure::External,
+                format!(
+                    "the external linear solver was set up for {} unknowns, got a system of {} with {} entries",
+                    self.csr.n,
+                    pattern.n,
+                    values.len()
+                ),
+            ));
         }
         self.csr.values_into(values, &mut self.values);
         let a = CsrView { n: self.csr.n, row_ptr: &self.csr.row_ptr, col_idx: &self.csr.col_idx, values: &self.values };
-        self.host
-            .0
-            .solve(a, rhs, x)
-            .map_err(|m| Error::Solver(format!("the external linear solver returned an error: {m}")))?;
+        self.host.0.solve(a, rhs, x).map_err(|m| {
+            Error::solver(SolverFailure::External, format!("the external linear solver returned an error: {m}"))
+        })?;
         if let Some(i) = x.iter().position(|v| !v.is_finite()) {
-            return Err(Error::Solver(format!(
-                "the external linear solver returned a non-finite solution (unknown {i} of {} is {})",
-                x.len(),
-                x[i]
-            )));
+            return Err(Error::solver(
+                SolverFailure::External,
+                format!(
+                    "the external linear solver returned a non-finite solution (unknown {i} of {} is {})",
+                    x.len(),
+                    x[i]
+                ),
+            ));
         }
         Ok(SolveStats { iterations: 0, solved_by: SolvedBy::External, fallback: None })
     }

@@ -51,7 +51,7 @@ use super::pcg::{pcg, BlockJacobi, PcgFailure, PcgParams, SymmetricOperator, Wit
 use super::pmg::{Chebyshev, ChebyshevParams, Hierarchy, VCycle};
 use super::SparseRows;
 use super::{DirectSolver, FallbackReason, LinearSolver, SolveStats, SolvedBy, SymmetricCsc};
-use crate::{Error, Result};
+use crate::{Error, Result, SolverFailure};
 
 /// Largest system the iterative solver hands to the direct one when PCG breaks
 /// down (an indefinite CIL or Newton tangent); above it the error is returned.
@@ -153,9 +153,17 @@ impl Breakdown {
         Breakdown { reason, iterations, error: f.into() }
     }
 
+    /// The kind of solver failure this breakdown is.
+    fn kind(&self) -> SolverFailure {
+        match &self.error {
+            Error::Solver { kind, .. } => *kind,
+            _ => SolverFailure::Setup,
+        }
+    }
+
     fn message(&self) -> String {
         match &self.error {
-            Error::Solver(m) => m.clone(),
+            Error::Solver { message, .. } => message.clone(),
             e => e.to_string(),
         }
     }
@@ -209,7 +217,10 @@ impl IterativeSolver {
     ) -> Result<IterativeSolver> {
         if let Some((p, _)) = levels.first() {
             if p.n_rows != pattern.n {
-                return Err(Error::Solver(format!("P has {} rows for {} unknowns", p.n_rows, pattern.n)));
+                return Err(Error::solver(
+                    SolverFailure::Setup,
+                    format!("P has {} rows for {} unknowns", p.n_rows, pattern.n),
+                ));
             }
         }
         let coarse = if levels.is_empty() { None } else { Some(Hierarchy::try_new(levels, block, params.smoother)?) };
@@ -363,10 +374,13 @@ fn pcg_outcome(
         (Err(PcgFailure::Stopped { iteration }), Some(cold)) => Err(Breakdown {
             reason: FallbackReason::EigenvalueUnderestimated,
             iterations: iteration,
-            error: Error::Solver(format!(
-                "PCG: {iteration} iterations, and the smoother's warm-started estimate of λ_max(D⁻¹A), \
+            error: Error::solver(
+                SolverFailure::NotConverged,
+                format!(
+                    "PCG: {iteration} iterations, and the smoother's warm-started estimate of λ_max(D⁻¹A), \
                  {estimate:.3}, is below a fresh one, {cold:.3}"
-            )),
+                ),
+            ),
         }),
         (Ok(it), _) => Ok(it),
         (Err(f), _) => Err(Breakdown::from_pcg(f)),
@@ -392,7 +406,7 @@ impl LinearSolver for IterativeSolver {
         let mode = if self.params.safe_preconditioner { Mode::Safe } else { Mode::Fast };
         let first = match self.try_pcg_solve(pattern, values, rhs, x, mode) {
             Ok(iterations) => return Ok(SolveStats { iterations, solved_by: SolvedBy::Pcg, fallback: None }),
-            Err(Breakdown { error, .. }) if !matches!(error, Error::Solver(_)) => return Err(error),
+            Err(Breakdown { error, .. }) if !matches!(error, Error::Solver { .. }) => return Err(error),
             Err(b) => b,
         };
         let fallback = Some(first.reason);
@@ -406,7 +420,7 @@ impl LinearSolver for IterativeSolver {
                 Ok(it) => {
                     return Ok(SolveStats { iterations: iterations + it, solved_by: SolvedBy::PcgRestarted, fallback })
                 }
-                Err(Breakdown { error, .. }) if !matches!(error, Error::Solver(_)) => return Err(error),
+                Err(Breakdown { error, .. }) if !matches!(error, Error::Solver { .. }) => return Err(error),
                 Err(again) => {
                     iterations += again.iterations;
                     message = format!("{message}; restarted with the safe preconditioner: {}", again.message());
@@ -414,10 +428,13 @@ impl LinearSolver for IterativeSolver {
             }
         }
         if pattern.n > self.params.fallback_max_dofs {
-            return Err(Error::Solver(format!(
-                "{message}; {} unknowns is too many for the direct fallback (at most {}): try the ILE formulation",
-                pattern.n, self.params.fallback_max_dofs
-            )));
+            return Err(Error::solver(
+                first.kind(),
+                format!(
+                    "{message}; {} unknowns is too many for the direct fallback (at most {}): try the ILE formulation",
+                    pattern.n, self.params.fallback_max_dofs
+                ),
+            ));
         }
         // The direct solver handles indefinite matrices (LU); a coarse
         // hierarchy that failed is left unset and rebuilt next time.
@@ -452,6 +469,6 @@ mod tests {
         let params = IterativeParams { fallback_max_dofs: 10, ..Default::default() };
         let mut solver = IterativeSolver::try_new(&a, 1, Vec::new(), params).unwrap();
         let r = solver.solve(&a, &v, &b, &mut vec![0.0; a.n]);
-        assert!(matches!(r, Err(Error::Solver(ref m)) if m.contains("direct fallback")), "{r:?}");
+        assert!(matches!(r, Err(Error::Solver { message: ref m, .. }) if m.contains("direct fallback")), "{r:?}");
     }
 }

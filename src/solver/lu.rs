@@ -7,7 +7,7 @@ use faer::sparse::{SparseColMat, Triplet};
 use faer::{Conj, MatMut};
 
 use super::SymmetricCsc;
-use crate::{Error, Result};
+use crate::{Error, Result, SolverFailure};
 
 /// Solve A x = b in place for the symmetric matrix whose lower triangle is
 /// (`pattern`, `values`), by a full sparse LU with partial pivoting.
@@ -23,17 +23,17 @@ pub fn try_lu_solve_in_place(pattern: &SymmetricCsc, values: &[f64], rhs: &mut [
         }
     }
     let a = SparseColMat::<usize, f64>::try_new_from_triplets(pattern.n, pattern.n, &triplets)
-        .map_err(|e| Error::Solver(format!("cannot build the matrix for LU: {e:?}")))?;
-    let symbolic =
-        SymbolicLu::try_new(a.symbolic()).map_err(|e| Error::Solver(format!("symbolic LU failed: {e:?}")))?;
+        .map_err(|e| Error::solver(SolverFailure::Setup, format!("cannot build the matrix for LU: {e:?}")))?;
+    let symbolic = SymbolicLu::try_new(a.symbolic())
+        .map_err(|e| Error::solver(SolverFailure::Setup, format!("symbolic LU failed: {e:?}")))?;
     let lu = Lu::try_new_with_symbolic(symbolic, a.as_ref())
-        .map_err(|e| Error::Solver(format!("the matrix is singular ({e:?})")))?;
+        .map_err(|e| Error::solver(SolverFailure::Singular, format!("the matrix is singular ({e:?})")))?;
     let n = rhs.len();
     lu.solve_in_place_with_conj(Conj::No, MatMut::from_column_major_slice_mut(rhs, n, 1));
     if rhs.iter().all(|x| x.is_finite()) {
         Ok(())
     } else {
-        Err(Error::Solver("the LU solution is not finite (singular matrix)".into()))
+        Err(Error::solver(SolverFailure::Singular, "the LU solution is not finite (singular matrix)"))
     }
 }
 

@@ -9,7 +9,7 @@
 use std::os::raw::c_int;
 use std::sync::Mutex;
 
-use crate::{Error, Result};
+use crate::{Error, Result, SolverFailure};
 
 /// METIS's `idx_t` as compiled by `build.rs` (`IDXTYPEWIDTH=32`).
 type Idx = i32;
@@ -48,9 +48,9 @@ pub fn try_node_nd(xadj: &mut [Idx], adjncy: &mut [Idx]) -> Result<Vec<Idx>> {
         .len()
         .checked_sub(1)
         .filter(|&n| n > 0)
-        .ok_or_else(|| Error::Solver("METIS_NodeND: empty graph".into()))?;
+        .ok_or_else(|| Error::solver(SolverFailure::Setup, "METIS_NodeND: empty graph"))?;
     if n > Idx::MAX as usize || xadj[n] as usize != adjncy.len() {
-        return Err(Error::Solver("METIS_NodeND: malformed graph".into()));
+        return Err(Error::solver(SolverFailure::Setup, "METIS_NodeND: malformed graph"));
     }
     let mut nvtxs = n as Idx;
     let mut options = [0 as Idx; METIS_NOPTIONS];
@@ -73,7 +73,7 @@ pub fn try_node_nd(xadj: &mut [Idx], adjncy: &mut [Idx]) -> Result<Vec<Idx>> {
         )
     };
     if status != METIS_OK {
-        return Err(Error::Solver(format!("METIS_NodeND failed (status {status})")));
+        return Err(Error::solver(SolverFailure::Setup, format!("METIS_NodeND failed (status {status})")));
     }
     Ok(perm)
 }

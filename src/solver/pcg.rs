@@ -17,7 +17,7 @@
 use rayon::prelude::*;
 
 use super::SymmetricCsc;
-use crate::{Error, Result};
+use crate::{Error, Result, SolverFailure};
 
 /// Rows per parallel task of the matrix-vector product and vector updates.
 const CHUNK: usize = 2048;
@@ -43,10 +43,10 @@ impl SymmetricOperator {
     pub fn try_new(pattern: &SymmetricCsc) -> Result<SymmetricOperator> {
         let n = pattern.n;
         if n >= u32::MAX as usize || pattern.nnz() >= u32::MAX as usize {
-            return Err(Error::Solver(format!(
-                "matrix too large for 32-bit indices ({n} rows, {} entries)",
-                pattern.nnz()
-            )));
+            return Err(Error::solver(
+                SolverFailure::Setup,
+                format!("matrix too large for 32-bit indices ({n} rows, {} entries)", pattern.nnz()),
+            ));
         }
         let upper_col = pattern.row_idx.clone();
         let mut lower_ptr = vec![0usize; n + 1];
@@ -238,11 +238,27 @@ impl std::fmt::Display for PcgFailure {
     }
 }
 
+impl PcgFailure {
+    /// The kind of solver failure this is.
+    fn kind(&self) -> SolverFailure {
+        match self {
+            PcgFailure::PreconditionerNotPositive { .. } | PcgFailure::MatrixNotPositive { .. } => {
+                SolverFailure::NotPositiveDefinite
+            }
+            PcgFailure::NonFinite { .. } => SolverFailure::NonFinite,
+            PcgFailure::Stagnated { .. } | PcgFailure::NotConverged { .. } | PcgFailure::Stopped { .. } => {
+                SolverFailure::NotConverged
+            }
+            PcgFailure::Preconditioner(_) => SolverFailure::Setup,
+        }
+    }
+}
+
 impl From<PcgFailure> for Error {
     fn from(f: PcgFailure) -> Error {
         match f {
             PcgFailure::Preconditioner(e) => e,
-            f => Error::Solver(f.to_string()),
+            f => Error::solver(f.kind(), f.to_string()),
         }
     }
 }
@@ -376,7 +392,10 @@ impl BlockJacobi {
     pub fn try_new(pattern: &SymmetricCsc, values: &[f64], block: usize) -> Result<BlockJacobi> {
         let n = pattern.n;
         if !(1..=3).contains(&block) || !n.is_multiple_of(block) {
-            return Err(Error::Solver(format!("block Jacobi: block size {block} does not divide {n}")));
+            return Err(Error::solver(
+                SolverFailure::Setup,
+                format!("block Jacobi: block size {block} does not divide {n}"),
+            ));
         }
         let bb = block * block;
         let mut inv = vec![0.0; n * block];
@@ -397,7 +416,12 @@ impl BlockJacobi {
                         a[jc * block + ir] = values[k];
                     }
                 }
-                let not_spd = || Error::Solver(format!("block Jacobi: diagonal block {i} is not positive definite"));
+                let not_spd = || {
+                    Error::solver(
+                        SolverFailure::NotPositiveDefinite,
+                        format!("block Jacobi: diagonal block {i} is not positive definite"),
+                    )
+                };
                 match invert_spd_block(&a[..bb], block, out) {
                     Some(min_ratio) if min_ratio >= NEAR_SINGULAR_PIVOT => Ok(0),
                     _ => {
@@ -645,7 +669,7 @@ pub(crate) mod tests {
             &mut x,
             PcgParams::default(),
         );
-        assert!(matches!(r, Err(Error::Solver(_))), "{r:?}");
+        assert!(matches!(r, Err(Error::Solver { .. })), "{r:?}");
         assert!(BlockJacobi::try_new(&a, &v, 1).is_err());
     }
 

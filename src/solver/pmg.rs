@@ -20,7 +20,7 @@ use rayon::prelude::*;
 use super::bsr::Operator;
 use super::pcg::{axpby_in_place, dot, BlockJacobi, SymmetricOperator, WithValues};
 use super::{SparseCholesky, SparseRows, SymmetricCsc};
-use crate::{Error, Result};
+use crate::{Error, Result, SolverFailure};
 
 /// The lower-triangle values of A_c = Pᵀ A P on `coarse` (its pattern):
 /// W = A P row by row, then column J of A_c = Σ_r P[r, J] W[r, ·]. Products
@@ -204,7 +204,10 @@ impl Chebyshev {
     ) -> Result<Chebyshev> {
         let bound = jacobi.row_sum_bound(op, values);
         if !(bound > 0.0 && bound.is_finite()) {
-            return Err(Error::Solver(format!("Chebyshev: the bound {bound:.3e} of λ_max is not positive")));
+            return Err(Error::solver(
+                SolverFailure::Setup,
+                format!("Chebyshev: the bound {bound:.3e} of λ_max is not positive"),
+            ));
         }
         let steps = params.power_iterations.max(SAFE_POWER_ITERATIONS);
         let (lambda, v) = power_estimate(&WithValues(op, values), &jacobi, steps, None)?;
@@ -287,7 +290,10 @@ fn power_estimate(
         jacobi.apply_into(&av, &mut u);
         lambda = dot(&u, &u).sqrt();
         if !(lambda > 0.0 && lambda.is_finite()) {
-            return Err(Error::Solver(format!("Chebyshev: λ_max estimate {lambda:.3e} is not positive")));
+            return Err(Error::solver(
+                SolverFailure::Setup,
+                format!("Chebyshev: λ_max estimate {lambda:.3e} is not positive"),
+            ));
         }
         std::mem::swap(&mut u, &mut v);
         v.iter_mut().for_each(|x| *x /= lambda);
@@ -342,10 +348,10 @@ impl Hierarchy {
         let mut out = Vec::with_capacity(n_levels);
         for (k, (p, pattern)) in levels.into_iter().enumerate() {
             if pattern.n != p.n_cols {
-                return Err(Error::Solver(format!(
-                    "coarse pattern has {} rows, P has {} columns",
-                    pattern.n, p.n_cols
-                )));
+                return Err(Error::solver(
+                    SolverFailure::Setup,
+                    format!("coarse pattern has {} rows, P has {} columns", pattern.n, p.n_cols),
+                ));
             }
             let chol =
                 if k + 1 == n_levels { Some((SparseCholesky::try_analyse(&pattern)?, Vec::new())) } else { None };
@@ -416,7 +422,8 @@ impl Hierarchy {
             l.x.copy_from_slice(&l.rhs);
             return chol.try_solve_in_place(factor, &mut l.x);
         }
-        let smoother = l.smoother.as_ref().ok_or_else(|| Error::Solver("p-multigrid level not set up".into()))?;
+        let smoother =
+            l.smoother.as_ref().ok_or_else(|| Error::solver(SolverFailure::Setup, "p-multigrid level not set up"))?;
         smoother.smooth_into(&WithValues(&l.op, &l.values), &l.rhs, &mut l.x, &mut l.work);
         l.op.matvec_into(&l.values, &l.x, &mut l.s);
         axpby_in_place(1.0, &l.rhs, -1.0, &mut l.s);
@@ -465,7 +472,7 @@ impl<'a> VCycle<'a> {
             return Ok(());
         };
         if !coarse.ready {
-            return Err(Error::Solver("p-multigrid hierarchy not set up".into()));
+            return Err(Error::solver(SolverFailure::Setup, "p-multigrid hierarchy not set up"));
         }
         // s = r − A z; z += P B_1 Pᵀ s
         op.apply_into(z, &mut self.s);
