@@ -6,14 +6,17 @@
 //! when the whole run succeeds, so a failed run leaves nothing half-curved.
 //!
 //! Before any run (and after changing the order or the boundary) the current
-//! mesh is the straight-sided mesh at the current order.
+//! mesh is the straight-sided mesh at the current order. The session keeps
+//! the mesh prepared for curving ([`Prepared`]: oriented, without its caps,
+//! elevated), rebuilt only when the mesh, the order or the cap removal
+//! change, and every run curves it from there.
 
 use std::borrow::Cow;
 
-use crate::curve::{curve, validate_options, CurveOptions, CurveReport, Formulation, Progress};
+use crate::curve::{curve_prepared, validate_options, CurveOptions, CurveReport, Formulation, Prepared, Progress};
 use crate::geometry::Projector;
 pub use crate::material::MaterialModel;
-use crate::mesh::{remove_boundary_caps, validate_and_orient, HighOrderMesh, LinearMesh, Topology};
+use crate::mesh::{validate_and_orient, HighOrderMesh, LinearMesh};
 use crate::quality::{self, ElementQuality, MeshQuality};
 use crate::reference::{ordering, NodeSet, NodeSpacing};
 use crate::solver::{ExternalSolver, SolverChoice};
@@ -37,14 +40,14 @@ pub enum NodeOrdering {
 pub struct Session {
     /// The validated mesh as the host gave it, with its tags.
     input: LinearMesh,
-    /// `input` without its boundary caps (when `opts.remove_caps`): the mesh that is curved.
-    linear: LinearMesh,
-    /// For each cell of `linear`, its index in `input`.
-    input_cell: Vec<usize>,
+    /// Cells of the mesh the host gave whose orientation was flipped.
+    reoriented: usize,
     /// (entity dimension, tag) of the facets and feature edges held straight:
-    /// `linear` has them untagged.
+    /// `prepared` has them untagged.
     straight_tags: Vec<(usize, i32)>,
-    topo: Topology,
+    /// `input` without the straight tags, prepared for curving at the order:
+    /// without its boundary caps (when `opts.remove_caps`), elevated.
+    prepared: Prepared,
     opts: CurveOptions,
     projector: Option<Box<dyn Projector + Send>>,
     progress: Option<ProgressFn>,
@@ -62,16 +65,15 @@ impl Session {
     /// Validate and orient the linear mesh; the session starts at order 1
     /// with the default options otherwise.
     pub fn try_new(linear: LinearMesh) -> Result<Session> {
-        let (input, _) = validate_and_orient(&linear)?;
+        let (input, reoriented) = validate_and_orient(&linear)?;
         let opts = CurveOptions { order: 1, ..Default::default() };
-        let (linear, input_cell, topo) = without_caps(&input, &opts, &[])?;
-        let (mesh, cell_quality, quality) = straight(&linear, &topo, &opts)?;
+        let prepared = prepare(&input, &opts, &[])?;
+        let (mesh, cell_quality, quality) = straight(&prepared);
         Ok(Session {
             input,
-            linear,
-            input_cell,
+            reoriented,
             straight_tags: Vec::new(),
-            topo,
+            prepared,
             opts,
             projector: None,
             progress: None,
@@ -86,7 +88,7 @@ impl Session {
     }
 
     pub fn dim(&self) -> usize {
-        self.linear.dim
+        self.input.dim
     }
     pub fn options(&self) -> &CurveOptions {
         &self.opts
@@ -114,7 +116,7 @@ impl Session {
     /// Number of cells of the straight mesh that is curved: the input cells
     /// less the boundary caps removed.
     pub fn n_straight_cells(&self) -> usize {
-        self.linear.n_cells()
+        self.prepared.linear().n_cells()
     }
 
     /// For each cell of the current mesh, an index among the cells the host
@@ -122,18 +124,16 @@ impl Session {
     /// one may also have cells made by the repair, which map to the input cell
     /// holding their centroid ([`crate::mesh::Repaired::input_cell`]).
     pub fn input_cells(&self) -> &[usize] {
-        self.report.as_ref().map_or(&self.input_cell, |r| &r.input_cell)
+        self.report.as_ref().map_or(self.prepared.input_cell(), |r| &r.input_cell)
     }
 
     /// Rebuild the straight mesh for a new input mesh or settings; on error
     /// nothing changes.
     fn reset(&mut self, input: LinearMesh, opts: CurveOptions) -> Result<()> {
-        let (linear, input_cell, topo) = without_caps(&input, &opts, &self.straight_tags)?;
-        let (mesh, cq, q) = straight(&linear, &topo, &opts)?;
+        let prepared = prepare(&input, &opts, &self.straight_tags)?;
+        let (mesh, cq, q) = straight(&prepared);
         self.input = input;
-        self.linear = linear;
-        self.input_cell = input_cell;
-        self.topo = topo;
+        self.prepared = prepared;
         self.opts = opts;
         self.mesh = mesh;
         self.cell_quality = cq;
@@ -320,17 +320,13 @@ impl Session {
     /// Curve the mesh in `increments` load increments. On error the session
     /// is exactly as before the call.
     pub fn run(&mut self, increments: usize) -> Result<()> {
-        // The caps are already removed from `linear` (another sweep finds none;
-        // `remove_caps` still lets the repair remove caps); fibres are per input cell.
         let mut opts = CurveOptions { increments, ..self.opts.clone() };
-        if let Some(f) = &self.opts.fibres {
-            opts.fibres = Some(self.input_cell.iter().map(|&c| f[c]).collect());
-        }
         if let Some(e) = &self.external_solver {
             opts.solver = SolverChoice::External(e.clone());
         }
         validate_options(&opts)?;
-        let has_tags = !self.linear.facets.is_empty() || !self.linear.feature_edges.is_empty();
+        let linear = self.prepared.linear();
+        let has_tags = !linear.facets.is_empty() || !linear.feature_edges.is_empty();
         if has_tags && self.projector.is_none() {
             return Err(Error::InvalidInput("boundary facets are tagged but no projector is set".into()));
         }
@@ -352,16 +348,13 @@ impl Session {
             Some(p) => p.as_mut(),
             None => &mut always,
         };
-        let linear = &self.linear;
-        let pool = self.pool.as_ref().expect("pool was just built");
-        let curved = pool.install(|| curve(linear, projector, &opts, &mut |p: &Progress| progress(p)))?;
+        let (prepared, pool) = (&self.prepared, self.pool.as_ref().expect("pool was just built"));
+        let curved = pool.install(|| curve_prepared(prepared, projector, &opts, &mut |p: &Progress| progress(p)))?;
         self.mesh = curved.mesh;
         self.quality = curved.report.quality.clone();
         self.cell_quality = curved.cell_quality;
-        let mut report = curved.report;
-        report.removed_caps = self.input.n_cells() - self.linear.n_cells();
-        // The repair ran on `linear`: compose its map with that of the caps.
-        report.input_cell = report.input_cell.iter().map(|&c| self.input_cell[c]).collect();
+        // The prepared mesh was oriented when the session was made.
+        let report = CurveReport { reoriented_cells: self.reoriented, ..curved.report };
         self.report = Some(report);
         Ok(())
     }
@@ -391,33 +384,20 @@ impl Session {
     }
 }
 
-/// The mesh to curve: `input` with the straight tags dropped and without its
-/// boundary caps if `opts.remove_caps`,
-/// the input index of each of its cells, and its topology.
-fn without_caps(
-    input: &LinearMesh,
-    opts: &CurveOptions,
-    straight_tags: &[(usize, i32)],
-) -> Result<(LinearMesh, Vec<usize>, Topology)> {
+/// The mesh to curve, prepared: `input` with the straight tags dropped
+/// ([`Prepared::new`]).
+fn prepare(input: &LinearMesh, opts: &CurveOptions, straight_tags: &[(usize, i32)]) -> Result<Prepared> {
     let mut curved = input.clone();
     curved.retain_tags(|d, t| !straight_tags.contains(&(d, t)));
-    let (linear, input_cell) =
-        if opts.remove_caps { remove_boundary_caps(&curved) } else { (curved, (0..input.n_cells()).collect()) };
-    let topo = Topology::new(&linear)?;
-    Ok((linear, input_cell, topo))
+    Prepared::new(&curved, opts)
 }
 
-/// Elevate with straight sides; quality is exactly 1 for affine elements.
-fn straight(
-    linear: &LinearMesh,
-    topo: &Topology,
-    opts: &CurveOptions,
-) -> Result<(HighOrderMesh, Vec<ElementQuality>, MeshQuality)> {
-    let nodes = NodeSet::new(topo.simplex, opts.order, opts.spacing);
-    let mesh = HighOrderMesh::elevate(linear, topo, &nodes, opts.spacing)?;
+/// The straight-sided mesh of `prepared`, whose quality is exactly 1 (affine elements).
+fn straight(prepared: &Prepared) -> (HighOrderMesh, Vec<ElementQuality>, MeshQuality) {
+    let mesh = prepared.straight_mesh().clone();
     let cq = vec![ElementQuality::PERFECT; mesh.n_cells()];
     let q = quality::summarize(&cq);
-    Ok((mesh, cq, q))
+    (mesh, cq, q)
 }
 
 /// Used when nothing is tagged: any projection request is an error.

@@ -143,3 +143,42 @@ fn boundary_caps_are_removed_when_the_boundary_is_set_and_can_be_kept() {
     assert_eq!(s.input_cells(), &[0, 1, 2]);
     assert!(s.report().is_none(), "changing the cells discards the curved result");
 }
+
+/// The annulus of [`session`] as a plain mesh: only the inner circle tagged.
+fn annulus_inner_tagged() -> hocurve::mesh::LinearMesh {
+    let mut mesh = cases::annulus_2d(0.5, 1.0, 12, 2).mesh;
+    mesh.retain_tags(|_, t| t == 1);
+    mesh
+}
+
+#[test]
+fn a_session_curves_its_prepared_mesh_as_curve_does_the_mesh_given() {
+    use hocurve::curve::{curve, curve_prepared, CurveOptions, Prepared};
+    let mut s = session();
+    s.set_projector(Some(Box::new(Faulty("ok"))));
+    s.run(2).unwrap();
+    let mesh = annulus_inner_tagged();
+    let opts = CurveOptions { order: 3, increments: 2, ..Default::default() };
+    let direct = curve(&mesh, &Faulty("ok"), &opts, &mut |_| true).unwrap();
+    assert_eq!(s.mesh().coords, direct.mesh.coords, "the session's run differs from curve()");
+    // One preparation, curved twice: the same mesh each time.
+    let prepared = Prepared::new(&mesh, &opts).unwrap();
+    for _ in 0..2 {
+        let again = curve_prepared(&prepared, &Faulty("ok"), &opts, &mut |_| true).unwrap();
+        assert_eq!(again.mesh.coords, direct.mesh.coords);
+    }
+    // A preparation for another order is refused, not silently used.
+    let e = curve_prepared(&prepared, &Faulty("ok"), &CurveOptions { order: 4, ..opts }, &mut |_| true).unwrap_err();
+    assert!(matches!(&e, Error::InvalidInput(m) if m.contains("prepared for order 3")), "{e}");
+}
+
+#[test]
+fn the_report_counts_the_cells_the_session_reoriented() {
+    let mut mesh = annulus_inner_tagged();
+    mesh.cells.swap(0, 1); // cell 0 now negatively oriented
+    let mut s = Session::try_new(mesh).unwrap();
+    s.set_order(2, NodeSpacing::Optimal).unwrap();
+    s.set_projector(Some(Box::new(Faulty("ok"))));
+    s.run(1).unwrap();
+    assert_eq!(s.report().unwrap().reoriented_cells, 1);
+}

@@ -5,15 +5,14 @@
 //! half-curved. The load increments of the elastic stage are in
 //! `stepping.rs`.
 
+use std::borrow::Cow;
 use std::time::Instant;
 
 use crate::assembly::{LinearElasticKernel, MaterialKernel, TangentMode};
 use crate::geometry::{place_boundary_nodes, BoundaryPlacement, Projector};
 use crate::mapping::ElementCache;
 use crate::material::{checked_fibres, make_material, LinearElastic, Material, MaterialModel};
-use crate::mesh::{
-    remove_boundary_caps, repair_with, validate_and_orient, HighOrderMesh, LinearMesh, RepairSummary, Topology,
-};
+use crate::mesh::{repair_with, HighOrderMesh, LinearMesh, RepairSummary, Topology};
 use crate::optimize::{self, OptimizeOptions, OptimizeReport};
 use crate::quadrature::simplex_rule;
 use crate::quality::{self, ElementQuality, MeshQuality};
@@ -21,9 +20,11 @@ use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
 use crate::solver::{DirectOrdering, FallbackReason, SolvedBy, SolverChoice};
 use crate::{Error, Result, SolverFailure};
 
+mod prepare;
 mod stepping;
 
 pub use crate::material::default_fibres;
+pub use prepare::Prepared;
 pub use stepping::{
     solve_increments, ElasticStop, IncrementsReport, Predictor, StepBack, StepBackReason, Stepping, DEFAULT_MAX_SPLITS,
     MAX_SPLITS,
@@ -326,6 +327,34 @@ pub fn curve(
 ) -> Result<CurvedMesh> {
     let t0 = Instant::now();
     let material = validate_options(opts)?;
+    let prepared = Prepared::new(linear, opts)?;
+    run_prepared(&prepared, projector, (opts, material), progress, t0)
+}
+
+/// [`curve`] on a mesh already prepared ([`Prepared::new`]) for the order,
+/// node spacing and cap removal of `opts`: the same result, without
+/// validating, orienting and elevating the mesh again.
+pub fn curve_prepared(
+    prepared: &Prepared,
+    projector: &dyn Projector,
+    opts: &CurveOptions,
+    progress: &mut dyn FnMut(&Progress) -> bool,
+) -> Result<CurvedMesh> {
+    let t0 = Instant::now();
+    let material = validate_options(opts)?;
+    prepared.check_matches(opts)?;
+    run_prepared(prepared, projector, (opts, material), progress, t0)
+}
+
+/// The stages of [`curve`] from a prepared mesh, with the options and the
+/// linear material they give ([`validate_options`]), timed from `t0`.
+fn run_prepared(
+    prepared: &Prepared,
+    projector: &dyn Projector,
+    (opts, material): (&CurveOptions, LinearElastic),
+    progress: &mut dyn FnMut(&Progress) -> bool,
+    t0: Instant,
+) -> Result<CurvedMesh> {
     let mut tick = |stage: Stage, step: usize, total: usize| -> Result<()> {
         if progress(&Progress { stage, step, total }) {
             Ok(())
@@ -335,8 +364,8 @@ pub fn curve(
     };
     let mut run = Run { opts, projector, timings: Timings::default(), tick: &mut tick };
 
-    // 1-2. Validate and elevate.
-    let elevated = run.elevate(linear)?;
+    // 1-2. Repair and elevate.
+    let elevated = run.elevate(prepared)?;
     run.timings.elevate = t0.elapsed().as_secs_f64();
 
     // 3. Project the boundary nodes.
@@ -363,27 +392,40 @@ struct Run<'a> {
 }
 
 impl Run<'_> {
-    /// Stages 1-2: validate and orient `linear`, remove its boundary caps and
-    /// repair it as the options ask, and elevate it to order p.
-    fn elevate(&mut self, linear: &LinearMesh) -> Result<Elevated> {
+    /// Stages 1-2: repair the prepared mesh as the options ask, and elevate
+    /// it to order p (the prepared elevation, when the repair changed nothing).
+    fn elevate<'p>(&mut self, prepared: &'p Prepared) -> Result<Elevated<'p>> {
         let (opts, projector) = (self.opts, self.projector);
         (self.tick)(Stage::Elevate, 0, 1)?;
-        let (linear, reoriented) = validate_and_orient(linear)?;
-        let n_input_cells = linear.n_cells();
-        let (linear, input_cell) =
-            if opts.remove_caps { remove_boundary_caps(&linear) } else { (linear, (0..n_input_cells).collect()) };
-        let removed_caps = n_input_cells - input_cell.len();
-        let (linear, input_cell, repair) = if opts.repair {
-            let r = repair_with(&linear, opts.remove_caps, |m| crate::geometry::facet_bulges(m, projector))?;
-            (r.mesh, r.input_cell.iter().map(|&c| input_cell[c]).collect(), r.summary)
-        } else {
-            (linear, input_cell, RepairSummary::default())
+        let n_input_cells = prepared.n_input_cells();
+        let (reoriented, removed_caps) = (prepared.reoriented_cells(), n_input_cells - prepared.input_cell().len());
+        let repaired = match opts.repair {
+            true => {
+                Some(repair_with(prepared.linear(), opts.remove_caps, |m| crate::geometry::facet_bulges(m, projector))?)
+            }
+            false => None,
         };
-        let topo = Topology::new(&linear)?;
-        let nodes = NodeSet::new(topo.simplex, opts.order, opts.spacing);
-        let mesh = HighOrderMesh::elevate(&linear, &topo, &nodes, opts.spacing)?;
-        let straight = mesh.coords.clone();
+        let repair = repaired.as_ref().map_or_else(RepairSummary::default, |r| r.summary);
         let fixes = InputFixes { reoriented, removed_caps, repair };
+        let Some(r) = repaired.filter(|r| r.mesh != *prepared.linear()) else {
+            let mesh = prepared.straight_mesh().clone();
+            return Ok(Elevated {
+                linear: Cow::Borrowed(prepared.linear()),
+                topo: Cow::Borrowed(prepared.topology()),
+                nodes: prepared.nodes().clone(),
+                straight: mesh.coords.clone(),
+                mesh,
+                n_input_cells,
+                input_cell: prepared.input_cell().to_vec(),
+                fixes,
+            });
+        };
+        let input_cell = r.input_cell.iter().map(|&c| prepared.input_cell()[c]).collect();
+        let topo = Topology::new(&r.mesh)?;
+        let nodes = NodeSet::new(topo.simplex, opts.order, opts.spacing);
+        let mesh = HighOrderMesh::elevate(&r.mesh, &topo, &nodes, opts.spacing)?;
+        let straight = mesh.coords.clone();
+        let (linear, topo) = (Cow::Owned(r.mesh), Cow::Owned(topo));
         Ok(Elevated { linear, topo, nodes, mesh, straight, n_input_cells, input_cell, fixes })
     }
 
@@ -502,10 +544,10 @@ impl Run<'_> {
 }
 
 /// The linear mesh made ready for curving and elevated to order p.
-struct Elevated {
+struct Elevated<'p> {
     /// The linear mesh, oriented, without its caps and repaired as asked.
-    linear: LinearMesh,
-    topo: Topology,
+    linear: Cow<'p, LinearMesh>,
+    topo: Cow<'p, Topology>,
     nodes: NodeSet,
     /// The elevated mesh, still straight-sided.
     mesh: HighOrderMesh,

@@ -1,0 +1,103 @@
+//! The part of a run that needs neither the projector nor the mechanics: a
+//! linear mesh validated and oriented, without its boundary caps, with its
+//! topology, and elevated straight-sided to order p. [`Prepared`] is made
+//! once and curved any number of times ([`super::curve_prepared`]); the
+//! stateful [`crate::session::Session`] keeps one.
+
+use crate::mesh::{remove_boundary_caps, validate_and_orient, HighOrderMesh, LinearMesh, Topology};
+use crate::reference::{NodeSet, NodeSpacing};
+use crate::{Error, Result};
+
+use super::CurveOptions;
+
+/// A linear mesh made ready to curve at one order ([`Prepared::new`]).
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    /// The mesh as given, validated and oriented, without its caps.
+    linear: LinearMesh,
+    /// For each cell of `linear`, its index in the mesh given.
+    input_cell: Vec<usize>,
+    n_input_cells: usize,
+    /// Cells of the mesh given whose orientation was negative and was flipped.
+    reoriented: usize,
+    topo: Topology,
+    nodes: NodeSet,
+    /// `linear` elevated to the order, straight-sided.
+    straight: HighOrderMesh,
+    /// The options it was made for.
+    order: usize,
+    spacing: NodeSpacing,
+    remove_caps: bool,
+}
+
+impl Prepared {
+    /// Validate and orient `linear`, remove its boundary caps when
+    /// `opts.remove_caps`, and elevate it to `opts.order` with
+    /// `opts.spacing`. Fails on a malformed mesh.
+    pub fn new(linear: &LinearMesh, opts: &CurveOptions) -> Result<Prepared> {
+        let (oriented, reoriented) = validate_and_orient(linear)?;
+        let n_input_cells = oriented.n_cells();
+        let (linear, input_cell) =
+            if opts.remove_caps { remove_boundary_caps(&oriented) } else { (oriented, (0..n_input_cells).collect()) };
+        let topo = Topology::new(&linear)?;
+        let nodes = NodeSet::new(topo.simplex, opts.order, opts.spacing);
+        let straight = HighOrderMesh::elevate(&linear, &topo, &nodes, opts.spacing)?;
+        Ok(Prepared {
+            linear,
+            input_cell,
+            n_input_cells,
+            reoriented,
+            topo,
+            nodes,
+            straight,
+            order: opts.order,
+            spacing: opts.spacing,
+            remove_caps: opts.remove_caps,
+        })
+    }
+
+    /// The linear mesh that is curved: the one given, oriented, less its caps.
+    pub fn linear(&self) -> &LinearMesh {
+        &self.linear
+    }
+
+    /// For each cell of [`Prepared::linear`], its index in the mesh given.
+    pub fn input_cell(&self) -> &[usize] {
+        &self.input_cell
+    }
+
+    /// Number of cells of the mesh given.
+    pub fn n_input_cells(&self) -> usize {
+        self.n_input_cells
+    }
+
+    /// Cells of the mesh given that were flipped to positive orientation.
+    pub fn reoriented_cells(&self) -> usize {
+        self.reoriented
+    }
+
+    pub fn topology(&self) -> &Topology {
+        &self.topo
+    }
+
+    pub fn nodes(&self) -> &NodeSet {
+        &self.nodes
+    }
+
+    /// [`Prepared::linear`] elevated to the order, straight-sided.
+    pub fn straight_mesh(&self) -> &HighOrderMesh {
+        &self.straight
+    }
+
+    /// Fails unless it was made for the order, node spacing and cap removal of `opts`.
+    pub fn check_matches(&self, opts: &CurveOptions) -> Result<()> {
+        if (self.order, self.spacing, self.remove_caps) != (opts.order, opts.spacing, opts.remove_caps) {
+            return Err(Error::InvalidInput(format!(
+                "the mesh was prepared for order {}, {:?} nodes and remove_caps {}; the options ask for order {}, \
+                 {:?} nodes and remove_caps {}",
+                self.order, self.spacing, self.remove_caps, opts.order, opts.spacing, opts.remove_caps
+            )));
+        }
+        Ok(())
+    }
+}
