@@ -28,13 +28,13 @@ fn main() -> hocurve::Result<()> {
     println!(
         "n={n} nr={nr} p={p} solver={} inc={increments} dofs={} setup={:.2}s assembly={:.2}s solve={:.2}s total={:.2}s \
          iterations={:?} min_q3={:.6} peak_rss={:.0}MB",
-        r.linear_solver,
+        r.solves.solver,
         r.dofs,
         t.setup,
         t.assembly,
         t.solve,
         t.total,
-        r.solver_iterations,
+        r.solves.iterations,
         r.quality.min_q3,
         common::peak_rss_mb()
     );

@@ -72,11 +72,11 @@ fn the_iterative_solver_on_the_condensed_system_matches_the_direct_full_one() {
     for p in [4, 5, 6] {
         let full = run(&case, p, Formulation::Ile, SolverChoice::Direct, false);
         let cond = run(&case, p, Formulation::Ile, SolverChoice::Iterative, true);
-        assert_eq!(cond.report.linear_solver, "pcg-pmg");
+        assert_eq!(cond.report.solves.solver, "pcg-pmg");
         // PCG itself converged (no direct fallback, which reports 0 iterations).
-        assert!(cond.report.solver_iterations.iter().all(|&n| n > 0 && n < 60), "{:?}", cond.report.solver_iterations);
+        assert!(cond.report.solves.iterations.iter().all(|&n| n > 0 && n < 60), "{:?}", cond.report.solves.iterations);
         let d = difference(&full, &cond);
-        println!("p={p}: PCG iterations {:?}, nodes differ by {d:.1e}", cond.report.solver_iterations);
+        println!("p={p}: PCG iterations {:?}, nodes differ by {d:.1e}", cond.report.solves.iterations);
         // PCG stops at ‖r‖ ≤ 1e-5 ‖b‖: a few 1e-6 of the mesh size.
         assert!(d < 1e-5, "p={p}: nodes differ by {d:e}");
     }

@@ -138,7 +138,7 @@ fn external_cg_gives_the_mesh_of_the_direct_solver() {
         let ext = run(p, SolverChoice::External(ExternalSolver::new(cg)));
         let direct = run(p, SolverChoice::Direct);
         assert_eq!(calls.load(Ordering::SeqCst), 3, "p={p}: one call per increment");
-        assert_eq!(ext.report.linear_solver, "external");
+        assert_eq!(ext.report.solves.solver, "external");
         assert_eq!(ext.report.quality.n_invalid, 0);
         let diff = ext.mesh.coords.iter().zip(&direct.mesh.coords).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
         // The box is 4 wide.
@@ -171,6 +171,6 @@ fn host_errors_and_non_finite_solutions_fail_the_run_and_change_nothing() {
     // None restores the built-in solver.
     s.set_linear_solver(None);
     s.run(2).unwrap();
-    assert_eq!(s.report().unwrap().linear_solver, "direct");
+    assert_eq!(s.report().unwrap().solves.solver, "direct");
     assert_eq!(before, s.mesh().coords);
 }

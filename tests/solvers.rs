@@ -46,7 +46,7 @@ fn assert_same_mesh(direct: &CurvedMesh, iterative: &CurvedMesh, what: &str) {
     let worst = direct.mesh.coords.iter().zip(&iterative.mesh.coords).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
     println!(
         "{what}: max |x_direct - x_iterative| = {worst:.2e} (h = {h:.3}), iterations {:?}",
-        iterative.report.solver_iterations
+        iterative.report.solves.iterations
     );
     // PCG stops at ‖r‖ ≤ 1e-5 ‖b‖ (solver::pcg::PcgParams): a few 1e-6·h.
     assert!(worst < 2e-5 * h, "{what}: nodes differ by {worst:e} (h = {h})");
@@ -62,9 +62,9 @@ fn iterative_and_direct_solvers_curve_the_sphere_cavity_alike_at_p_2_and_3() {
     for p in [2, 3] {
         let d = run(&case, p, Formulation::Ile, SolverChoice::Direct).unwrap();
         let i = run(&case, p, Formulation::Ile, SolverChoice::Iterative).unwrap();
-        assert_eq!(d.report.linear_solver, "direct");
-        assert_eq!(i.report.linear_solver, "pcg-pmg");
-        assert!(i.report.solver_iterations.iter().all(|&n| n > 0 && n < 100), "{:?}", i.report.solver_iterations);
+        assert_eq!(d.report.solves.solver, "direct");
+        assert_eq!(i.report.solves.solver, "pcg-pmg");
+        assert!(i.report.solves.iterations.iter().all(|&n| n > 0 && n < 100), "{:?}", i.report.solves.iterations);
         assert_same_mesh(&d, &i, &format!("sphere p={p}"));
     }
 }

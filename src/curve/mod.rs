@@ -17,7 +17,7 @@ use crate::optimize::{self, OptimizeOptions, OptimizeReport};
 use crate::quadrature::simplex_rule;
 use crate::quality::{self, ElementQuality, MeshQuality};
 use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
-use crate::solver::{DirectOrdering, FallbackReason, SolvedBy, SolverChoice};
+use crate::solver::{DirectOrdering, SolveLog, SolverChoice};
 use crate::{Error, Result, SolverFailure};
 
 mod prepare;
@@ -247,17 +247,9 @@ pub struct CurveReport {
     pub timings: Timings,
     /// NONLINEAR: ‖R‖/‖R₀‖ after each Newton iteration, per increment.
     pub newton_history: Vec<Vec<f64>>,
-    /// The linear solver that ran ("direct", ...).
-    pub linear_solver: &'static str,
-    /// Krylov iterations of each linear solve (zeros for a direct solver;
-    /// with those of an attempt that fell back).
-    pub solver_iterations: Vec<usize>,
-    /// The solver that produced each solve's solution.
-    pub solver_per_solve: Vec<SolvedBy>,
-    /// Per solve, why the first choice of solver did not produce it.
-    pub fallback_per_solve: Vec<Option<FallbackReason>>,
-    /// Solves that fell back (restarted PCG, direct after PCG, LU after Cholesky).
-    pub fallbacks: usize,
+    /// The linear solves: the solver, and per solve its iterations, which
+    /// solver produced the solution and why it fell back.
+    pub solves: SolveLog,
     /// Where the elastic stage stopped short of the full load, if it did:
     /// adaptive stepping could not keep a cell valid, so the remaining load
     /// was applied in one linear solve on the straight mesh and the
@@ -468,7 +460,7 @@ impl Run<'_> {
             let mut reference = reference.clone();
             let finish = setup.finish_stepping.clone();
             let finish = solve_increments(&mut reference, &setup.linear_kernel, &rest, finish, timings, tick)?;
-            solved.append_solves(finish);
+            solved.solves.append(finish.solves);
             for ((x, r), s) in mesh.coords.iter_mut().zip(&reference.coords).zip(straight) {
                 *x += r - s;
             }
@@ -507,7 +499,7 @@ impl Run<'_> {
             // mesh, then the optimisation; kept if it leaves fewer invalid cells.
             let (finish, timings, tick) = (setup.finish_stepping.clone(), &mut self.timings, &mut *self.tick);
             let full = solve_increments(&mut second, &setup.linear_kernel, ubar, finish, timings, tick)?;
-            solved.append_solves(full);
+            solved.solves.append(full.solves);
             let other = optimiser.finish(second, None)?;
             if other.invalid() < done.invalid() {
                 (done, restarted) = (other, true);
@@ -762,11 +754,7 @@ impl Optimised {
             quality,
             timings,
             newton_history: solved.newton_history,
-            linear_solver: solved.linear_solver,
-            solver_iterations: solved.solver_iterations,
-            solver_per_solve: solved.solver_per_solve,
-            fallback_per_solve: solved.fallback_per_solve,
-            fallbacks: solved.fallbacks,
+            solves: solved.solves,
             elastic_stop: solved.stopped,
             optimization,
         };

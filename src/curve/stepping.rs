@@ -9,8 +9,8 @@ use crate::mesh::HighOrderMesh;
 use crate::quality;
 use crate::reference::{LagrangeBasis, NodeSet};
 use crate::solver::{
-    DirectOrdering, DirectSolver, ExternalAdapter, FallbackReason, IterativeParams, IterativeSolver, LinearSolver,
-    SolveStats, SolvedBy, SolverChoice, AUTO_DIRECT_MAX_DOFS,
+    DirectOrdering, DirectSolver, ExternalAdapter, IterativeParams, IterativeSolver, LinearSolver, SolveLog,
+    SolverChoice, AUTO_DIRECT_MAX_DOFS,
 };
 use crate::{Error, Result, SolverFailure};
 
@@ -108,15 +108,8 @@ pub struct IncrementsReport {
     pub n_system: usize,
     /// NONLINEAR: relative residual history of each attempted increment.
     pub newton_history: Vec<Vec<f64>>,
-    pub linear_solver: &'static str,
-    /// Krylov iterations of each linear solve (rejected increments included).
-    pub solver_iterations: Vec<usize>,
-    /// The solver that produced each solve's solution.
-    pub solver_per_solve: Vec<SolvedBy>,
-    /// Per solve, why the first choice of solver did not produce it.
-    pub fallback_per_solve: Vec<Option<FallbackReason>>,
-    /// Solves that fell back.
-    pub fallbacks: usize,
+    /// The linear solves (rejected increments included).
+    pub solves: SolveLog,
     /// Load fraction reached by each accepted increment (the last is 1); its
     /// length is the number of increments taken.
     pub load_fractions: Vec<f64>,
@@ -134,22 +127,6 @@ impl IncrementsReport {
     /// An empty report for the unknowns of `dofs`.
     fn new(dofs: &DofMap) -> IncrementsReport {
         IncrementsReport { n_free: dofs.n_free, n_system: dofs.n_system, ..Default::default() }
-    }
-
-    /// Append the solves of `more`, a further run of [`solve_increments`].
-    pub(super) fn append_solves(&mut self, more: IncrementsReport) {
-        self.solver_iterations.extend(more.solver_iterations);
-        self.solver_per_solve.extend(more.solver_per_solve);
-        self.fallback_per_solve.extend(more.fallback_per_solve);
-        self.fallbacks += more.fallbacks;
-    }
-
-    /// Record what one linear solve reports.
-    fn record_solve(&mut self, stats: &SolveStats) {
-        self.solver_iterations.push(stats.iterations);
-        self.solver_per_solve.push(stats.solved_by);
-        self.fallback_per_solve.push(stats.fallback);
-        self.fallbacks += usize::from(stats.fallback.is_some());
     }
 
     /// Size of each accepted increment, as a fraction of the whole load.
@@ -315,7 +292,7 @@ fn step_through<K: ElementKernel>(
     let mut out = IncrementsReport::new(&dofs);
     let n_free = dofs.n_free;
     let mut ctx = IncrementContext::new(mesh, kernel, stepping, dofs, timings)?;
-    out.linear_solver = ctx.solver.name();
+    out.solves.solver = ctx.solver.name();
     let mut walk = Walk::new(stepping, n_free, mesh);
     let mut bufs = Buffers {
         step: vec![0.0; ubar.len()],
@@ -635,7 +612,7 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
         let n = system.dofs().n_system;
         let stats =
             self.solver.solve(system.pattern(), system.values(), system.rhs(), &mut x[..n]).map_err(Failure::Fatal)?;
-        out.record_solve(&stats);
+        out.solves.record(&stats);
         system.recover_interior(mesh, prescribed, x);
         timings.solve += t.elapsed().as_secs_f64();
         Ok(())

@@ -1403,7 +1403,7 @@ pub unsafe extern "C" fn hoc_mesh_solve_count(
 ) -> HocStatus {
     guard(mesh, || {
         let h = handle(mesh)?;
-        let (solves, fallbacks) = h.session.report().map_or((0, 0), |r| (r.solver_per_solve.len(), r.fallbacks));
+        let (solves, fallbacks) = h.session.report().map_or((0, 0), |r| (r.solves.len(), r.solves.fallbacks()));
         *n_solves.as_mut().ok_or_else(|| null("n_solves"))? = solves;
         *n_fallbacks.as_mut().ok_or_else(|| null("n_fallbacks"))? = fallbacks;
         Ok(())
@@ -1431,27 +1431,27 @@ pub unsafe extern "C" fn hoc_mesh_get_solves(
 ) -> HocStatus {
     guard(mesh, || {
         let h = handle(mesh)?;
-        let Some(r) = h.session.report().filter(|r| !r.solver_per_solve.is_empty()) else {
+        let Some(r) = h.session.report().filter(|r| !r.solves.is_empty()) else {
             return match n_solves {
                 0 => Ok(()),
                 _ => Err((HOC_ERROR_BUFFER_SIZE, format!("n_solves = {n_solves}, but no solve has run"))),
             };
         };
-        if n_solves != r.solver_per_solve.len() {
+        if n_solves != r.solves.len() {
             return Err((
                 HOC_ERROR_BUFFER_SIZE,
-                format!("n_solves = {n_solves}, but the run made {} linear solves", r.solver_per_solve.len()),
+                format!("n_solves = {n_solves}, but the run made {} linear solves", r.solves.len()),
             ));
         }
         for i in 0..n_solves {
             if !solved_by.is_null() {
-                *solved_by.add(i) = solved_by_code(r.solver_per_solve[i]);
+                *solved_by.add(i) = solved_by_code(r.solves.solved_by[i]);
             }
             if !fallbacks.is_null() {
-                *fallbacks.add(i) = r.fallback_per_solve[i].map_or(HOC_FALLBACK_NONE, fallback_code);
+                *fallbacks.add(i) = r.solves.fallback[i].map_or(HOC_FALLBACK_NONE, fallback_code);
             }
             if !iterations.is_null() {
-                *iterations.add(i) = r.solver_iterations[i];
+                *iterations.add(i) = r.solves.iterations[i];
             }
         }
         Ok(())

@@ -40,6 +40,50 @@ pub struct SolveStats {
     pub fallback: Option<FallbackReason>,
 }
 
+/// What the linear solves of a run did, one entry per solve in order.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SolveLog {
+    /// The linear solver that was set up ("direct", "pcg-pmg", ...).
+    pub solver: &'static str,
+    /// Krylov iterations of each solve (zeros for a direct solver; with
+    /// those of an attempt that fell back).
+    pub iterations: Vec<usize>,
+    /// The solver that produced each solve's solution.
+    pub solved_by: Vec<SolvedBy>,
+    /// Per solve, why the first choice of solver did not produce it.
+    pub fallback: Vec<Option<FallbackReason>>,
+}
+
+impl SolveLog {
+    /// Record what one solve reports.
+    pub fn record(&mut self, stats: &SolveStats) {
+        self.iterations.push(stats.iterations);
+        self.solved_by.push(stats.solved_by);
+        self.fallback.push(stats.fallback);
+    }
+
+    /// Append the solves of `more`, made after these.
+    pub fn append(&mut self, more: SolveLog) {
+        self.iterations.extend(more.iterations);
+        self.solved_by.extend(more.solved_by);
+        self.fallback.extend(more.fallback);
+    }
+
+    /// Number of solves.
+    pub fn len(&self) -> usize {
+        self.solved_by.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.solved_by.is_empty()
+    }
+
+    /// Solves that fell back (restarted PCG, direct after PCG, LU after Cholesky).
+    pub fn fallbacks(&self) -> usize {
+        self.fallback.iter().filter(|f| f.is_some()).count()
+    }
+}
+
 /// Which solver produced a solution ([`SolveStats::solved_by`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
 pub enum SolvedBy {

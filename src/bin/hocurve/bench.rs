@@ -231,7 +231,7 @@ pub fn cmd_bench_one(argv: &[String]) -> Result<()> {
     let c = curve(&mesh, &case.projector, &opts, &mut |_| true)?;
     let r = &c.report;
     let t = &r.timings;
-    let iterative = r.solver_iterations.iter().any(|&i| i > 0);
+    let iterative = r.solves.iterations.iter().any(|&i| i > 0);
     let row = Row {
         dim,
         order: r.order,
@@ -239,9 +239,9 @@ pub fn cmd_bench_one(argv: &[String]) -> Result<()> {
         cells: r.cells,
         nodes: r.nodes,
         unknowns: r.dofs,
-        solver: r.linear_solver.to_string(),
+        solver: r.solves.solver.to_string(),
         iterations: iterative
-            .then(|| r.solver_iterations.iter().sum::<usize>() as f64 / r.solver_iterations.len() as f64),
+            .then(|| r.solves.iterations.iter().sum::<usize>() as f64 / r.solves.iterations.len() as f64),
         elevate_project: t.elevate + t.project,
         assembly: t.assembly,
         setup: t.setup,

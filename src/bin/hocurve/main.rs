@@ -238,7 +238,7 @@ fn run_case(label: &str, mesh: &LinearMesh, projector: &ShapeProjector, opts: &C
         r.order, r.nodes, r.dofs, r.quality.min_q3, r.quality.mean_q3, r.quality.n_invalid, r.timings.total
     );
     eprintln!("[{label}] {}", increments_line(r));
-    if r.fallbacks > 0 {
+    if r.solves.fallbacks() > 0 {
         eprintln!("[{label}] {}", fallbacks_line(r));
     }
     if r.quality.n_invalid > 0 {
@@ -273,10 +273,10 @@ fn increments_line(r: &hocurve::curve::CurveReport) -> String {
 /// "linear solver: 2 of 10 solves fell back: solve 4 by pcg-restarted
 /// (preconditioner-not-positive-definite), solve 7 by direct (stagnation)".
 fn fallbacks_line(r: &hocurve::curve::CurveReport) -> String {
-    let list: Vec<String> = (r.solver_per_solve.iter().zip(&r.fallback_per_solve).enumerate())
+    let list: Vec<String> = (r.solves.solved_by.iter().zip(&r.solves.fallback).enumerate())
         .filter_map(|(i, (by, f))| f.map(|f| format!("solve {} by {} ({})", i + 1, by.name(), f.name())))
         .collect();
-    format!("linear solver: {} of {} solves fell back: {}", r.fallbacks, r.solver_per_solve.len(), list.join(", "))
+    format!("linear solver: {} of {} solves fell back: {}", r.solves.fallbacks(), r.solves.len(), list.join(", "))
 }
 
 fn cmd_demo(argv: &[String]) -> Result<()> {
@@ -560,11 +560,11 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
         num(r.max_projection_distance),
         quality_json(&r.quality),
         r.newton_history,
-        r.linear_solver,
-        r.solver_iterations,
-        r.solver_per_solve.iter().map(|s| format!("\"{}\"", s.name())).collect::<Vec<_>>().join(", "),
-        r.fallbacks,
-        r.fallback_per_solve
+        r.solves.solver,
+        r.solves.iterations,
+        r.solves.solved_by.iter().map(|s| format!("\"{}\"", s.name())).collect::<Vec<_>>().join(", "),
+        r.solves.fallbacks(),
+        r.solves.fallback
             .iter()
             .map(|f| f.map_or("null".into(), |f| format!("\"{}\"", f.name())))
             .collect::<Vec<_>>()
