@@ -14,32 +14,60 @@
 //!   → assembly → solver → optimize            systems, their solvers, the
 //!                                             optimisation stage
 //!   → curve → session                         the pipeline, and its stateful form
-//!   → cases → study → io → ffi                demo and test meshes, the
-//!                                             formulation study, files, the C ABI
+//!   → cases → io → ffi                        demo and test meshes, files, the C ABI
 //! ```
 //!
-//! The command-line tool (`src/bin`) sits above them all.
+//! The command-line tool (`src/bin`, with the formulation study) sits above
+//! them all.
+//!
+//! The API is [`curve()`] (or [`curve::curve_prepared`]) and
+//! [`session::Session`], with the meshes, projectors, materials, quality
+//! measures, solver choices and files they take. `jacobi`, `linalg`,
+//! `sparse`, `assembly` and `optimize` are the engine's internals:
+//! crate-private, public only with the `internals` feature, which the
+//! crate's own tests turn on. `cases` (built-in meshes) comes with the
+//! default `demo` feature, which the command line needs.
+
+// Every type the public API reaches can be named from outside.
+#![cfg_attr(not(feature = "internals"), warn(unnameable_types))]
+
+/// Modules of the engine that are not its API: public with the `internals`
+/// feature (which the crate's own integration tests turn on), crate-private
+/// otherwise.
+macro_rules! internal {
+    ($($(#[$attr:meta])* mod $name:ident;)*) => {$(
+        $(#[$attr])*
+        #[cfg(feature = "internals")]
+        pub mod $name;
+        $(#[$attr])*
+        #[cfg(not(feature = "internals"))]
+        pub(crate) mod $name;
+    )*};
+}
 
 pub mod error;
 
-pub mod jacobi;
-pub mod linalg;
-pub mod sparse;
+internal! {
+    mod jacobi;
+    mod linalg;
+    mod sparse;
+    mod assembly;
+    mod optimize;
+}
 
-pub mod assembly;
 pub mod curve;
 pub mod geometry;
 pub mod mapping;
 pub mod material;
 pub mod mesh;
-pub mod optimize;
 pub mod quadrature;
 pub mod quality;
 pub mod reference;
 pub mod session;
 pub mod solver;
-pub mod study;
 
+/// Built-in demonstration and test meshes (the `demo` feature, on by default).
+#[cfg(any(feature = "demo", feature = "internals", test))]
 pub mod cases;
 pub mod ffi;
 pub mod io;

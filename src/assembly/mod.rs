@@ -21,9 +21,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use rayon::prelude::*;
 
-pub use condense::{condense_element, CondenseWorkspace, InteriorRecovery, LocalSplit, SingularInterior};
-pub use hyperelastic::{MaterialKernel, MaterialWorkspace, TangentMode};
-pub use kernel::{KernelWorkspace, LinearElasticKernel};
+pub use condense::{condense_element, CondenseWorkspace, InteriorRecovery, LocalSplit};
+pub use hyperelastic::{MaterialKernel, TangentMode};
+pub use kernel::LinearElasticKernel;
 pub use transfer::multigrid_levels;
 
 use crate::mesh::{HighOrderMesh, NodeConstraint};

@@ -13,7 +13,8 @@ use crate::geometry::{place_boundary_nodes, BoundaryPlacement, Projector};
 use crate::mapping::ElementCache;
 use crate::material::{checked_fibres, make_material, LinearElastic, Material, MaterialModel};
 use crate::mesh::{repair_with, HighOrderMesh, LinearMesh, RepairSummary, Topology};
-use crate::optimize::{self, OptimizeOptions, OptimizeReport};
+use crate::optimize;
+pub use crate::optimize::{OptimizeOptions, OptimizeReport};
 use crate::quadrature::simplex_rule;
 use crate::quality::{self, ElementQuality, MeshQuality};
 use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
@@ -25,10 +26,12 @@ mod stepping;
 
 pub use crate::material::default_fibres;
 pub use prepare::Prepared;
-pub use stepping::{
-    solve_increments, ElasticStop, IncrementsReport, Predictor, StepBack, StepBackReason, Stepping, DEFAULT_MAX_SPLITS,
-    MAX_SPLITS,
-};
+pub use stepping::{ElasticStop, StepBack, StepBackReason, DEFAULT_MAX_SPLITS, MAX_SPLITS};
+// The elastic stage on its own, for the crate's tests.
+#[cfg(feature = "internals")]
+pub use stepping::{solve_increments, IncrementsReport, Predictor, Stepping};
+#[cfg(not(feature = "internals"))]
+use stepping::{solve_increments, IncrementsReport, Stepping};
 
 /// The solid-mechanics formulation (paper Table 1).
 #[non_exhaustive]

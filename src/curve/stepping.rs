@@ -43,6 +43,7 @@ pub struct Stepping {
 impl Stepping {
     /// `increments` equal ILE steps, built-in solver, adaptive stepping on
     /// with [`DEFAULT_MAX_SPLITS`].
+    #[cfg(any(test, feature = "internals"))]
     pub fn new(increments: usize) -> Stepping {
         Stepping {
             increments,
@@ -130,6 +131,7 @@ impl IncrementsReport {
     }
 
     /// Size of each accepted increment, as a fraction of the whole load.
+    #[cfg(test)]
     pub fn steps(&self) -> Vec<f64> {
         let mut prev = 0.0;
         self.load_fractions

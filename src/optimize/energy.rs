@@ -158,6 +158,7 @@ impl SampleRule {
     }
 
     /// The element energy alone.
+    #[cfg(test)]
     pub fn energy(&self, e: &ElementSamples, xe: &[f64], delta: f64) -> Option<f64> {
         let mut total = 0.0;
         for q in 0..self.n_points() {

@@ -197,6 +197,7 @@ impl BlockSym32 {
     }
 
     /// Bytes held (indices and values).
+    #[cfg(test)]
     pub fn memory_bytes(&self) -> usize {
         let part = |p: &BlockRows| p.ptr.len() * 8 + p.col.len() * 4 + p.val.len() * 4;
         part(&self.up) + part(&self.lo) + self.lo_src.len() * 4

@@ -8,15 +8,17 @@
 //! [`ExternalAdapter`] hands each system to a solver of the host's
 //! ([`SystemSolver`]) as a full CSR matrix.
 
-pub mod bsr;
+internal! {
+    mod bsr;
+    mod pcg;
+    mod pmg;
+}
 mod cholesky;
 mod direct;
 mod external;
 mod iterative;
 mod lu;
 mod metis;
-pub mod pcg;
-pub mod pmg;
 
 pub use crate::sparse::{SparseRows, SymmetricCsc};
 pub use cholesky::{nested_dissection, node_block_size, DirectOrdering, SparseCholesky};
@@ -24,7 +26,8 @@ pub use direct::DirectSolver;
 pub use external::{CsrView, ExternalAdapter, ExternalSolver, FullCsrPattern, SystemSolver};
 pub use iterative::{IterativeParams, IterativeSolver, FALLBACK_DIRECT_MAX_DOFS};
 pub use lu::try_lu_solve_in_place;
-pub use pcg::PcgFailure;
+pub use pcg::{PcgFailure, PcgParams};
+pub use pmg::ChebyshevParams;
 
 use crate::{Error, Result};
 

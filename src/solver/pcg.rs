@@ -276,6 +276,7 @@ pub const STAGNATION_FACTOR: f64 = 0.9;
 /// (A is not positive definite: a CIL or Newton tangent can be indefinite),
 /// when rᵀz ≤ 0 (the preconditioner is not), on a non-finite residual, or
 /// without convergence in `max_iterations`.
+#[cfg(any(test, feature = "internals"))]
 pub fn try_pcg(
     apply_a: &mut dyn FnMut(&[f64], &mut [f64]),
     apply_m: &mut Preconditioner<'_>,
@@ -374,6 +375,7 @@ pub struct BlockJacobi {
     /// Row-major inverse of each block.
     inv: Vec<f64>,
     /// Blocks shifted by [`BLOCK_SHIFT`] because they were nearly singular.
+    #[cfg_attr(not(test), allow(dead_code))] // read by the tests
     regularised: usize,
 }
 
@@ -442,6 +444,7 @@ impl BlockJacobi {
     }
 
     /// Blocks that were shifted because nearly singular.
+    #[cfg(test)]
     pub fn regularised(&self) -> usize {
         self.regularised
     }

@@ -216,6 +216,7 @@ impl Chebyshev {
     }
 
     /// Upper end of the smoothed interval.
+    #[cfg(test)]
     pub fn lambda_max(&self) -> f64 {
         self.lambda_max
     }
@@ -230,11 +231,6 @@ impl Chebyshev {
     /// warm-started estimate ([`Self::try_new_from`]).
     pub fn cold_estimate(&self, op: &dyn Operator, steps: usize) -> Result<f64> {
         power_estimate(op, &self.jacobi, steps.max(1), None).map(|(lambda, _)| lambda)
-    }
-
-    /// Diagonal blocks regularised because nearly singular.
-    pub fn regularised_blocks(&self) -> usize {
-        self.jacobi.regularised()
     }
 
     /// The last power-iteration vector (a start for the next, similar matrix).
@@ -375,23 +371,14 @@ impl Hierarchy {
         Ok(Hierarchy { levels: out, block, params, ready: false })
     }
 
-    /// Unknowns per coarse level.
-    pub fn sizes(&self) -> Vec<usize> {
-        self.levels.iter().map(|l| l.pattern.n).collect()
-    }
-
-    /// True once [`Self::try_update`] has succeeded.
+    /// True once [`Self::try_update_with`] has succeeded.
     pub fn is_ready(&self) -> bool {
         self.ready
     }
 
     /// Numeric set-up for the fine matrix held by `op`: Galerkin operators
-    /// level by level, smoothers, and the factor of the coarsest.
-    pub fn try_update(&mut self, op: &SymmetricOperator, values: &[f64]) -> Result<()> {
-        self.try_update_with(op, values, false)
-    }
-
-    /// [`Self::try_update`]; with `safe`, the smoothers of [`Chebyshev::try_new_safe`].
+    /// level by level, smoothers, and the factor of the coarsest; with
+    /// `safe`, the smoothers of [`Chebyshev::try_new_safe`].
     pub fn try_update_with(&mut self, op: &SymmetricOperator, values: &[f64], safe: bool) -> Result<()> {
         self.ready = false;
         for k in 0..self.levels.len() {

@@ -16,6 +16,7 @@
 //! would double the build time of the binary for little gain.
 
 mod bench;
+mod study;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -316,9 +317,9 @@ fn cmd_study(argv: &[String]) -> Result<()> {
     let args = Args::parse(&rest, &["output-dir"])?;
     let dir = PathBuf::from(args.get("output-dir").unwrap_or("."));
     std::fs::create_dir_all(&dir).map_err(|e| Error::Io(format!("cannot create {}: {e}", dir.display())))?;
-    let config = if quick { hocurve::study::StudyConfig::quick() } else { hocurve::study::StudyConfig::full() };
+    let config = if quick { study::StudyConfig::quick() } else { study::StudyConfig::full() };
     let t = std::time::Instant::now();
-    let study = hocurve::study::run(&config);
+    let study = study::run(&config);
     print!("{}", study.table());
     eprintln!("study: {} runs in {:.1} s", study.cells.len(), t.elapsed().as_secs_f64());
     write_text_atomic(&dir.join("study.csv"), &study.csv())?;
@@ -591,7 +592,7 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
     )
 }
 
-fn optimization_json(o: &hocurve::optimize::OptimizeReport) -> String {
+fn optimization_json(o: &hocurve::curve::OptimizeReport) -> String {
     format!(
         "{{\"ran\": {}, \"target_cells\": {}, \"cells_touched\": {}, \"nodes_moved\": {}, \"patches\": {}, \
          \"rounds\": {}, \"cells_split\": {}, \"invalid_before\": {}, \"invalid_after\": {}, \"min_q3_before\": {}, \
