@@ -47,6 +47,9 @@ macro_rules! internal {
 
 pub mod error;
 
+#[cfg(test)]
+mod testing;
+
 internal! {
     mod jacobi;
     mod linalg;

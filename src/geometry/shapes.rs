@@ -505,22 +505,15 @@ fn any_perpendicular(n: [f64; 3]) -> [f64; 3] {
 mod tests {
     use super::*;
 
-    /// xorshift64*: deterministic pseudo-random numbers in [0, 1).
-    struct Rng(u64);
-    impl Rng {
-        fn next(&mut self) -> f64 {
-            self.0 ^= self.0 >> 12;
-            self.0 ^= self.0 << 25;
-            self.0 ^= self.0 >> 27;
-            (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
-        }
-        fn point(&mut self, c: [f64; 3], half: f64) -> [f64; 3] {
-            [
-                c[0] + half * (2.0 * self.next() - 1.0),
-                c[1] + half * (2.0 * self.next() - 1.0),
-                c[2] + half * (2.0 * self.next() - 1.0),
-            ]
-        }
+    use crate::testing::Rng;
+
+    /// A point of the cube of half-side `half` about `c`.
+    fn point(rng: &mut Rng, c: [f64; 3], half: f64) -> [f64; 3] {
+        [
+            c[0] + half * (2.0 * rng.next() - 1.0),
+            c[1] + half * (2.0 * rng.next() - 1.0),
+            c[2] + half * (2.0 * rng.next() - 1.0),
+        ]
     }
 
     fn frame(n: [f64; 3]) -> ([f64; 3], [f64; 3], [f64; 3]) {
@@ -624,7 +617,7 @@ mod tests {
         let mut rng = Rng(0x1234_5678_9abc_def1);
         for shape in test_shapes() {
             for _ in 0..200 {
-                let x = rng.point([0.0; 3], 2.0);
+                let x = point(&mut rng, [0.0; 3], 2.0);
                 let y = shape.closest_point(x);
                 assert!(
                     shape.distance(y) <= 1e-14 * 4.0,
@@ -645,7 +638,7 @@ mod tests {
         let mut rng = Rng(0x0bad_cafe_dead_beef);
         for shape in test_shapes() {
             for _ in 0..3 {
-                let x = rng.point([0.0; 3], 1.5);
+                let x = point(&mut rng, [0.0; 3], 1.5);
                 let d = norm(sub(x, shape.closest_point(x)));
                 let brute = samples(&shape, x).iter().map(|s| norm(sub(x, *s))).fold(f64::INFINITY, f64::min);
                 assert!(d <= brute + 1e-12, "{shape}: {d} > brute force {brute}");

@@ -518,14 +518,21 @@ impl<'a> Parser<'a> {
         Err(self.err(format!("unexpected end of file, missing {end}")))
     }
 
-    fn nodes(&mut self, nodes: &mut Vec<[f64; 3]>, tags: &mut Vec<usize>) -> Result<()> {
+    /// The header of the `$Nodes` or `$Elements` section (`what`: "node" or
+    /// "element"): the numbers of blocks and of items; the tag range is skipped.
+    fn section_header(&mut self, what: &str) -> Result<(usize, usize)> {
         if self.binary.is_some() {
             self.binary_data_start()?;
         }
-        let n_blocks = self.usize("the number of node blocks")?;
-        let n_nodes = self.usize("the number of nodes")?;
-        self.usize("the minimum node tag")?;
-        self.usize("the maximum node tag")?;
+        let n_blocks = self.usize(&format!("the number of {what} blocks"))?;
+        let n_items = self.usize(&format!("the number of {what}s"))?;
+        self.usize(&format!("the minimum {what} tag"))?;
+        self.usize(&format!("the maximum {what} tag"))?;
+        Ok((n_blocks, n_items))
+    }
+
+    fn nodes(&mut self, nodes: &mut Vec<[f64; 3]>, tags: &mut Vec<usize>) -> Result<()> {
+        let (n_blocks, n_nodes) = self.section_header("node")?;
         let first = nodes.len();
         nodes.reserve(self.cap(n_nodes, 8));
         tags.reserve(self.cap(n_nodes, 8));
@@ -568,13 +575,7 @@ impl<'a> Parser<'a> {
     }
 
     fn elements(&mut self, blocks: &mut Vec<ElementBlock>) -> Result<()> {
-        if self.binary.is_some() {
-            self.binary_data_start()?;
-        }
-        let n_blocks = self.usize("the number of element blocks")?;
-        let n_elements = self.usize("the number of elements")?;
-        self.usize("the minimum element tag")?;
-        self.usize("the maximum element tag")?;
+        let (n_blocks, n_elements) = self.section_header("element")?;
         let mut total = 0usize;
         for _ in 0..n_blocks {
             let entity_dim = self.i32("the entity dimension")?;

@@ -11,24 +11,7 @@ pub(crate) const IDENTITY: Mat3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 
 /// The Poisson ratios every calibration test sweeps.
 pub(crate) const POISSON_SWEEP: [f64; 6] = [0.0, 0.001, 0.2, 0.3, 0.45, 0.495];
 
-/// xorshift64* — enough for test samples.
-pub(crate) struct Rng(u64);
-
-impl Rng {
-    pub(crate) fn new(seed: u64) -> Rng {
-        Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
-    }
-    pub(crate) fn uniform(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        let x = self.0.wrapping_mul(0x2545_F491_4F6C_DD1D);
-        (x >> 11) as f64 / (1u64 << 53) as f64
-    }
-    pub(crate) fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.uniform()
-    }
-}
+pub(crate) use crate::testing::Rng;
 
 /// A random F with J uniform in [0.5, 2]; plane strain keeps F = diag(F₂, 1).
 pub(crate) fn random_f(rng: &mut Rng, plane: bool) -> Mat3 {

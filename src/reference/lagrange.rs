@@ -161,26 +161,18 @@ mod tests {
     const SPACINGS: [NodeSpacing; 2] = [NodeSpacing::Equispaced, NodeSpacing::Optimal];
     const SIMPLICES: [Simplex; 2] = [Simplex::Tri, Simplex::Tet];
 
-    /// Deterministic xorshift64* generator on [0, 1).
-    struct Rng(u64);
-    impl Rng {
-        fn next(&mut self) -> f64 {
-            self.0 ^= self.0 >> 12;
-            self.0 ^= self.0 << 25;
-            self.0 ^= self.0 >> 27;
-            (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
-        }
-        /// A uniform-ish point of the closed simplex.
-        fn point(&mut self, simplex: Simplex) -> [f64; 3] {
-            let dim = simplex.dim();
-            loop {
-                let mut x = [0.0; 3];
-                for c in x.iter_mut().take(dim) {
-                    *c = self.next();
-                }
-                if x.iter().sum::<f64>() <= 1.0 {
-                    return x;
-                }
+    use crate::testing::Rng;
+
+    /// A uniform-ish point of the closed simplex.
+    fn point(rng: &mut Rng, simplex: Simplex) -> [f64; 3] {
+        let dim = simplex.dim();
+        loop {
+            let mut x = [0.0; 3];
+            for c in x.iter_mut().take(dim) {
+                *c = rng.next();
+            }
+            if x.iter().sum::<f64>() <= 1.0 {
+                return x;
             }
         }
     }
@@ -251,7 +243,7 @@ mod tests {
         let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
         for_all_bases(1..=10, |b| {
             let dim = b.simplex().dim();
-            let mut pts: Vec<[f64; 3]> = (0..5).map(|_| rng.point(b.simplex())).collect();
+            let mut pts: Vec<[f64; 3]> = (0..5).map(|_| point(&mut rng, b.simplex())).collect();
             pts.extend_from_slice(b.simplex().vertex_coords());
             let t = b.tabulate(&pts);
             for q in 0..t.n_points {
@@ -273,7 +265,7 @@ mod tests {
             let dim = simplex.dim();
             let poly = Poly::random(simplex, b.order(), &mut rng);
             let coef: Vec<f64> = b.nodes().coords.iter().map(|x| poly.value(x)).collect();
-            let mut pts: Vec<[f64; 3]> = (0..6).map(|_| rng.point(simplex)).collect();
+            let mut pts: Vec<[f64; 3]> = (0..6).map(|_| point(&mut rng, simplex)).collect();
             pts.extend_from_slice(simplex.vertex_coords());
             pts.extend(b.nodes().coords.iter().step_by(7));
             let t = b.tabulate(&pts);
