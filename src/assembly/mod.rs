@@ -487,17 +487,13 @@ impl System {
         residual: bool,
     ) -> Result<()> {
         let (dim, ndof_e) = (mesh.dim(), mesh.nodes_per_cell() * mesh.dim());
+        let mut interior = self.take_interior();
         let dofs = &self.dofs;
         let split = dofs.split.as_ref();
         let stride = split.map_or(0, LocalSplit::stride);
         // With condensation, the Newton residual is still measured on every
         // free dof: the uncondensed b on the system rows, and ‖b_I‖² per cell.
         let measure = residual && split.is_some();
-        let mut interior = match (split, self.interior.take()) {
-            (Some(split), Some(r)) if r.split == *split => Some(r),
-            (Some(split), _) => Some(InteriorRecovery { split: split.clone(), keep: Vec::new() }),
-            (None, _) => None,
-        };
         let mut none = Vec::new();
         let keep = zeroed_atomics(interior.as_mut().map_or(&mut none, |r| &mut r.keep), stride * mesh.n_cells());
         let target = Target {
@@ -563,6 +559,16 @@ impl System {
         };
         self.interior = interior;
         Ok(())
+    }
+
+    /// The interior recovery of the last assembly (its buffer reused), or a
+    /// new one; None without condensation.
+    fn take_interior(&mut self) -> Option<InteriorRecovery> {
+        match (self.dofs.split.as_ref(), self.interior.take()) {
+            (Some(split), Some(r)) if r.split == *split => Some(r),
+            (Some(split), _) => Some(InteriorRecovery { split: split.clone(), keep: Vec::new() }),
+            (None, _) => None,
+        }
     }
 }
 
