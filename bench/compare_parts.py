@@ -18,6 +18,8 @@ cad folder's README), three runs, each timed as a whole (wall seconds):
              measured mesh has that many fewer cells).
   elastic    gmsh MODEL -3 -order P -setnumber Mesh.HighOrderOptimize 3   (elastic analogy)
   optimiser  the same with Mesh.HighOrderOptimize 2   (elastic analogy, then the optimiser)
+  linear     gmsh MODEL -3 -order 1   (the linear meshing alone, for the curving-only table:
+             hocurve-occt's own curving time against gmsh's optimiser run less this)
 
 The gmsh runs get the same linear-mesh options hocurve-occt sets through the
 API (Mesh.MeshSizeMax H, Mesh.MeshSizeMin 0.1 H, Mesh.MeshSizeFromCurvature 12),
@@ -61,7 +63,10 @@ MODELS = [
     ("U_Joint_2", "U_Joint_2.stp", 25.0),
     ("SampleCrankshaft4A", "SampleCrankshaft4A.stp", 80.0),
 ]
-TOOLS = ["hocurve", "elastic", "optimiser"]
+TOOLS = ["hocurve", "elastic", "optimiser", "linear"]
+# The tools of the main table; "linear" (gmsh's linear meshing alone) is what
+# the curving-only table subtracts from gmsh's whole runs.
+TABLE_TOOLS = TOOLS[:3]
 CURVATURE = 12  # hocurve-occt's default --curvature
 
 
@@ -126,10 +131,11 @@ def run_one(args, name, path, h, p, tool):
         cmd = [args.hocurve_occt, path, "--order", str(p), "--mesh-size", str(h), "--output", msh,
                "--report", base + ".report.json"]
     else:
-        cmd = [args.gmsh, path, "-3", "-order", str(p), "-format", "msh41",
+        order = ["-order", "1"] if tool == "linear" else ["-order", str(p)]
+        curving = [] if tool == "linear" else ["-setnumber", "Mesh.HighOrderOptimize", "3" if tool == "elastic" else "2"]
+        cmd = [args.gmsh, path, "-3", *order, "-format", "msh41",
                "-setnumber", "Mesh.MeshSizeMax", str(h), "-setnumber", "Mesh.MeshSizeMin", str(0.1 * h),
-               "-setnumber", "Mesh.MeshSizeFromCurvature", str(CURVATURE),
-               "-setnumber", "Mesh.HighOrderOptimize", "3" if tool == "elastic" else "2", "-o", msh]
+               "-setnumber", "Mesh.MeshSizeFromCurvature", str(CURVATURE), *curving, "-o", msh]
     rc, secs = run_timed(cmd, base + ".log", args.timeout)
     row.update(command=" ".join(cmd), exit=rc, seconds=round(secs, 2))
     if rc is None:
@@ -150,7 +156,7 @@ def run_one(args, name, path, h, p, tool):
         row["status"] = "ok" if rc == 0 else ("invalid" if tool == "hocurve" else "error")
         if tool != "hocurve" and rc != 0:
             row["message"] = first_error(base + ".log") or last_line(base + ".log")
-    q = quality(args.hocurve, msh, base + ".q.json", args.timeout)
+    q = quality(args.hocurve, msh, base + ".q.json", args.timeout) if tool != "linear" else None
     if q:
         row.update(cells=q.get("cells"), nodes=q.get("nodes"), min_q3=q.get("min_q3"),
                    invalid=q.get("invalid_elements"), certified_invalid=q.get("certified_invalid_elements"),
@@ -161,6 +167,9 @@ def run_one(args, name, path, h, p, tool):
         for k in ("cells_given", "placement_fallbacks", "placement_projected", "distorted_facets"):
             if k in rep:
                 row[k] = rep[k]
+        # Its own split of the wall time: STEP import and linear meshing, then curving.
+        row.update(mesh_seconds=rep["seconds"]["mesh"], curve_seconds=rep["seconds"]["curve"],
+                   solves=len(rep.get("solves", [])))
     if not args.keep_meshes and os.path.exists(msh):
         os.remove(msh)
     return row
@@ -199,7 +208,7 @@ def table(rows, models, orders):
         if name not in models:
             continue
         for p in orders:
-            rs = [by.get((name, p, t)) for t in TOOLS]
+            rs = [by.get((name, p, t)) for t in TABLE_TOOLS]
             if not any(rs):
                 continue
             # Cells of the linear mesh: gmsh's, and hocurve-occt's before its cap removal.
@@ -212,6 +221,29 @@ def table(rows, models, orders):
             for r in rs:
                 line += list(fmt_q(r))
             out.append("| " + " | ".join(line) + " |")
+    return "\n".join(out)
+
+
+def curving_table(rows, models, orders):
+    """Curving against curving: hocurve-occt's own curving time (its report), and
+    gmsh's optimiser run less gmsh's linear meshing of the same model and size."""
+    by = {(r["model"], r["p"], r["tool"]): r for r in rows}
+    out = ["| model | p | hocurve curving s | elastic solves | gmsh linear meshing s | gmsh optimiser s "
+           "| gmsh valid | gmsh curving s | ratio |",
+           "|---|---|---|---|---|---|---|---|---|"]
+    for name, _, _ in MODELS:
+        if name not in models:
+            continue
+        for p in orders:
+            hoc, lin, opt = (by.get((name, p, t)) for t in ("hocurve", "linear", "optimiser"))
+            if not (hoc and hoc.get("curve_seconds") is not None and hoc["status"] == "ok" and lin and opt):
+                continue
+            if lin["status"] != "ok" or opt["status"] not in ("ok", "error") or opt.get("min_q3") is None:
+                continue
+            gmsh_curving = opt["seconds"] - lin["seconds"]
+            valid = "yes" if opt.get("certified_invalid", opt.get("invalid")) == 0 else "no"
+            out.append(f"| {name} | {p} | {hoc['curve_seconds']:.1f} | {hoc.get('solves', '–')} | {lin['seconds']:.1f} "
+                       f"| {opt['seconds']:.1f} | {valid} | {gmsh_curving:.1f} | {gmsh_curving / hoc['curve_seconds']:.1f} |")
     return "\n".join(out)
 
 
@@ -289,7 +321,7 @@ def main():
             for r in json.load(f):
                 rows.setdefault((r["model"], r["p"], r["tool"]), r)
     rows = [rows[k] for k in sorted(rows) if k[0] in models and k[1] in orders]
-    md = table(rows, models, orders)
+    md = table(rows, models, orders) + "\n\nCurving alone:\n\n" + curving_table(rows, models, orders)
     if args.save:
         with open(args.save, "w") as f:
             json.dump(rows, f, indent=1)
