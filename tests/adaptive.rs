@@ -55,7 +55,7 @@ fn coarse_sphere_at_p4_comes_out_certified_valid_with_adaptive_stepping() {
         assert!(plain.report.quality.n_certified_invalid > 0, "the case must defeat plain ILE");
         assert!(plain.report.step_backs.is_empty() && plain.report.increments_taken() == increments);
 
-        let adaptive = run(&case, &base).unwrap();
+        let adaptive = run(&case, &CurveOptions { optimize: off(), ..base.clone() }).unwrap();
         println!("adaptive ILE, {increments} increment(s) requested: {}", describe(&adaptive));
         let r = &adaptive.report;
         assert!(r.adaptive, "on by default for ILE");
@@ -68,6 +68,20 @@ fn coarse_sphere_at_p4_comes_out_certified_valid_with_adaptive_stepping() {
         assert_eq!(*r.load_fractions.last().unwrap(), 1.0);
         assert!(r.load_fractions.windows(2).all(|w| w[0] < w[1]));
         assert!(r.step_backs.iter().all(|b| b.reason == StepBackReason::CertifiedInvalid && b.cell.is_some()));
+
+        // With the optimisation stage (the default), a cell that rejects a
+        // second step of the same increment hands the run over to it: in
+        // one increment, cell 0 rejects the steps from 0 and from 0.5.
+        let handed = run(&case, &base).unwrap();
+        println!("adaptive ILE + optimisation, {increments} increment(s): {}", describe(&handed));
+        let h = &handed.report;
+        assert_eq!((h.quality.n_certified_invalid, h.quality.n_uncertain), (0, 0));
+        assert!(h.quality.min_q3 > r.quality.min_q3, "{} vs {}", h.quality.min_q3, r.quality.min_q3);
+        if increments == 1 {
+            let stop = h.elastic_stop.as_ref().expect("the elastic stage stopped at the second rejection");
+            assert_eq!((stop.load, stop.cell), (0.5, Some(0)));
+            assert!(h.solves.len() < r.solves.len(), "{} solves against {}", h.solves.len(), r.solves.len());
+        }
     }
 }
 

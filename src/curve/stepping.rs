@@ -347,6 +347,8 @@ struct Walk {
     /// Ticks of load reached, and halvings of the current step.
     at: u64,
     depth: usize,
+    /// The cell blamed by the last rejection of the current nominal increment.
+    last_rejected: Option<usize>,
     /// The certified check after every increment (an inversion has slipped
     /// between the sample points).
     certify_all: bool,
@@ -370,6 +372,7 @@ impl Walk {
             total: stepping.increments as u64 * nominal,
             at: 0,
             depth: 0,
+            last_rejected: None,
             certify_all: false,
             predictor: Predictor::new(n_free),
             n_free,
@@ -437,7 +440,7 @@ impl Walk {
         self.at += inc.len;
         out.load_fractions.push(self.at as f64 / self.total as f64);
         if self.at.is_multiple_of(self.nominal) {
-            self.depth = 0;
+            (self.depth, self.last_rejected) = (0, None);
         }
     }
 
@@ -447,7 +450,7 @@ impl Walk {
         out.step_backs.push(StepBack { load: inc.from, step: inc.h, reason: StepBackReason::Restarted, cell });
         mesh.coords.copy_from_slice(&self.start);
         out.load_fractions.clear();
-        (self.at, self.depth, self.certify_all) = (0, 0, true);
+        (self.at, self.depth, self.certify_all, self.last_rejected) = (0, 0, true, None);
         self.predictor = Predictor::new(self.n_free);
     }
 
@@ -461,10 +464,16 @@ impl Walk {
         detail: String,
         out: &mut IncrementsReport,
     ) -> Result<()> {
-        if self.depth >= self.splits && self.finish && reason != StepBackReason::NewtonFailed {
+        // With `finish`, a cell that rejects a second step of the same
+        // nominal increment, after the first was halved, is one that smaller
+        // steps only approach: the optimisation stage takes over now rather
+        // than after halving to the limit.
+        let again = self.finish && cell.is_some() && cell == self.last_rejected;
+        if (self.depth >= self.splits || again) && self.finish && reason != StepBackReason::NewtonFailed {
             stop(out, ElasticStop { load: inc.from, reason, cell, detail, restarted: false });
             return Ok(());
         }
+        self.last_rejected = cell;
         if self.depth >= self.splits {
             return Err(self.limit_error(inc, reason, cell, &detail));
         }
