@@ -167,6 +167,9 @@ fn a_session_curves_its_prepared_mesh_as_curve_does_the_mesh_given() {
         let again = curve_prepared(&prepared, &Faulty("ok"), &opts, &mut |_| true).unwrap();
         assert_eq!(again.mesh.coords, direct.mesh.coords);
     }
+    // Bad options are refused when preparing, as when curving.
+    let e = Prepared::new(&mesh, &CurveOptions { order: 11, ..opts.clone() }).unwrap_err();
+    assert!(matches!(&e, Error::InvalidInput(m) if m.contains("order must be between 1 and 10")), "{e}");
     // A preparation for another order is refused, not silently used.
     let e = curve_prepared(&prepared, &Faulty("ok"), &CurveOptions { order: 4, ..opts }, &mut |_| true).unwrap_err();
     assert!(matches!(&e, Error::InvalidInput(m) if m.contains("prepared for order 3")), "{e}");

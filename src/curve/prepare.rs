@@ -8,7 +8,7 @@ use crate::mesh::{remove_boundary_caps, validate_and_orient, HighOrderMesh, Line
 use crate::reference::{NodeSet, NodeSpacing};
 use crate::{Error, Result};
 
-use super::CurveOptions;
+use super::{validate_options, CurveOptions};
 
 /// A linear mesh made ready to curve at one order ([`Prepared::new`]).
 #[derive(Debug, Clone)]
@@ -33,8 +33,9 @@ pub struct Prepared {
 impl Prepared {
     /// Validate and orient `linear`, remove its boundary caps when
     /// `opts.remove_caps`, and elevate it to `opts.order` with
-    /// `opts.spacing`. Fails on a malformed mesh.
+    /// `opts.spacing`. Fails on a malformed mesh or options.
     pub fn new(linear: &LinearMesh, opts: &CurveOptions) -> Result<Prepared> {
+        validate_options(opts)?;
         let (oriented, reoriented) = validate_and_orient(linear)?;
         let n_input_cells = oriented.n_cells();
         let (linear, input_cell) =
