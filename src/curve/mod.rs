@@ -321,9 +321,8 @@ pub fn curve(
     progress: &mut dyn FnMut(&Progress) -> bool,
 ) -> Result<CurvedMesh> {
     let t0 = Instant::now();
-    let material = validate_options(opts)?;
     let prepared = Prepared::new(linear, opts)?;
-    run_prepared(&prepared, projector, (opts, material), progress, t0)
+    run_prepared(&prepared, projector, opts, progress, t0)
 }
 
 /// [`curve`] on a mesh already prepared ([`Prepared::new`]) for the order,
@@ -335,21 +334,19 @@ pub fn curve_prepared(
     opts: &CurveOptions,
     progress: &mut dyn FnMut(&Progress) -> bool,
 ) -> Result<CurvedMesh> {
-    let t0 = Instant::now();
-    let material = validate_options(opts)?;
     prepared.check_matches(opts)?;
-    run_prepared(prepared, projector, (opts, material), progress, t0)
+    run_prepared(prepared, projector, opts, progress, Instant::now())
 }
 
-/// The stages of [`curve`] from a prepared mesh, with the options and the
-/// linear material they give ([`validate_options`]), timed from `t0`.
+/// The stages of [`curve`] from a prepared mesh, timed from `t0`.
 fn run_prepared(
     prepared: &Prepared,
     projector: &dyn Projector,
-    (opts, material): (&CurveOptions, LinearElastic),
+    opts: &CurveOptions,
     progress: &mut dyn FnMut(&Progress) -> bool,
     t0: Instant,
 ) -> Result<CurvedMesh> {
+    let material = validate_options(opts)?;
     let mut tick = |stage: Stage, step: usize, total: usize| -> Result<()> {
         if progress(&Progress { stage, step, total }) {
             Ok(())
