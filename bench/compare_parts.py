@@ -199,28 +199,30 @@ def fmt_q(row):
     return qs, invs, secs
 
 
+def model_orders(models, orders):
+    """(model, p) in the table's order: MODELS, then orders, for the models asked."""
+    return [(name, p) for name, _, _ in MODELS if name in models for p in orders]
+
+
 def table(rows, models, orders):
     by = {(r["model"], r["p"], r["tool"]): r for r in rows}
     out = ["| model | p | cells | hocurve min Q3 | inv | s | gmsh elastic min Q3 | inv | s "
            "| gmsh optimiser min Q3 | inv | s |",
            "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for name, _, _ in MODELS:
-        if name not in models:
+    for name, p in model_orders(models, orders):
+        rs = [by.get((name, p, t)) for t in TABLE_TOOLS]
+        if not any(rs):
             continue
-        for p in orders:
-            rs = [by.get((name, p, t)) for t in TABLE_TOOLS]
-            if not any(rs):
-                continue
-            # Cells of the linear mesh: gmsh's, and hocurve-occt's before its cap removal.
-            cells = sorted({r.get("cells_given", r.get("cells")) for r in rs if r and r.get("cells")})
-            cs = " / ".join(str(c) for c in cells) if cells else "–"
-            h = rs[0]
-            if h and h.get("cells_given") and h.get("cells") and h["cells"] != h["cells_given"]:
-                cs += f" ({h['cells_given'] - h['cells']} caps)"
-            line = [name, str(p), cs]
-            for r in rs:
-                line += list(fmt_q(r))
-            out.append("| " + " | ".join(line) + " |")
+        # Cells of the linear mesh: gmsh's, and hocurve-occt's before its cap removal.
+        cells = sorted({r.get("cells_given", r.get("cells")) for r in rs if r and r.get("cells")})
+        cs = " / ".join(str(c) for c in cells) if cells else "–"
+        h = rs[0]
+        if h and h.get("cells_given") and h.get("cells") and h["cells"] != h["cells_given"]:
+            cs += f" ({h['cells_given'] - h['cells']} caps)"
+        line = [name, str(p), cs]
+        for r in rs:
+            line += list(fmt_q(r))
+        out.append("| " + " | ".join(line) + " |")
     return "\n".join(out)
 
 
@@ -231,19 +233,16 @@ def curving_table(rows, models, orders):
     out = ["| model | p | hocurve curving s | elastic solves | gmsh linear meshing s | gmsh optimiser s "
            "| gmsh valid | gmsh curving s | ratio |",
            "|---|---|---|---|---|---|---|---|---|"]
-    for name, _, _ in MODELS:
-        if name not in models:
+    for name, p in model_orders(models, orders):
+        hoc, lin, opt = (by.get((name, p, t)) for t in ("hocurve", "linear", "optimiser"))
+        if not (hoc and hoc.get("curve_seconds") is not None and hoc["status"] == "ok" and lin and opt):
             continue
-        for p in orders:
-            hoc, lin, opt = (by.get((name, p, t)) for t in ("hocurve", "linear", "optimiser"))
-            if not (hoc and hoc.get("curve_seconds") is not None and hoc["status"] == "ok" and lin and opt):
-                continue
-            if lin["status"] != "ok" or opt["status"] not in ("ok", "error") or opt.get("min_q3") is None:
-                continue
-            gmsh_curving = opt["seconds"] - lin["seconds"]
-            valid = "yes" if opt.get("certified_invalid", opt.get("invalid")) == 0 else "no"
-            out.append(f"| {name} | {p} | {hoc['curve_seconds']:.1f} | {hoc.get('solves', '–')} | {lin['seconds']:.1f} "
-                       f"| {opt['seconds']:.1f} | {valid} | {gmsh_curving:.1f} | {gmsh_curving / hoc['curve_seconds']:.1f} |")
+        if lin["status"] != "ok" or opt["status"] not in ("ok", "error") or opt.get("min_q3") is None:
+            continue
+        gmsh_curving = opt["seconds"] - lin["seconds"]
+        valid = "yes" if opt.get("certified_invalid", opt.get("invalid")) == 0 else "no"
+        out.append(f"| {name} | {p} | {hoc['curve_seconds']:.1f} | {hoc.get('solves', '–')} | {lin['seconds']:.1f} "
+                   f"| {opt['seconds']:.1f} | {valid} | {gmsh_curving:.1f} | {gmsh_curving / hoc['curve_seconds']:.1f} |")
     return "\n".join(out)
 
 

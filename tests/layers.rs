@@ -124,3 +124,36 @@ fn internal_modules_are_public_only_with_the_internals_feature() {
         assert!(!lib.contains(&format!("pub mod {m};")), "{m} is also declared public");
     }
 }
+
+/// No function of the library outside its tests is longer than 80 lines
+/// (signature to closing brace, `rustfmt` layout); generated data is exempt.
+#[test]
+fn no_library_function_is_longer_than_80_lines() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    rust_files(&src, &mut files);
+    let mut long = Vec::new();
+    for f in files.iter().filter(|f| !f.ends_with("symmetric_data.rs")) {
+        let text = std::fs::read_to_string(f).unwrap();
+        let code = text.split("#[cfg(test)]\nmod tests").next().unwrap();
+        let lines: Vec<&str> = code.lines().collect();
+        for (i, line) in lines.iter().enumerate() {
+            let trimmed = line.trim_start();
+            let indent = &line[..line.len() - trimmed.len()];
+            let is_fn =
+                ["fn ", "pub fn ", "pub(crate) fn ", "pub(super) fn ", "unsafe fn ", "pub unsafe extern \"C\" fn "]
+                    .iter()
+                    .any(|p| trimmed.starts_with(p));
+            if !is_fn || trimmed.ends_with(';') {
+                continue;
+            }
+            let close = format!("{indent}}}");
+            if let Some(n) = lines[i..].iter().position(|l| *l == close) {
+                if n + 1 > 80 {
+                    long.push(format!("{}:{} ({} lines)", f.strip_prefix(&src).unwrap().display(), i + 1, n + 1));
+                }
+            }
+        }
+    }
+    assert!(long.is_empty(), "functions over 80 lines:\n{}", long.join("\n"));
+}

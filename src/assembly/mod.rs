@@ -526,14 +526,7 @@ impl System {
                     if let Some(split) = split {
                         if measure {
                             element_rhs(cell, dim, dofs, ke, Some(re), prescribed, b);
-                            let mut sq = 0.0;
-                            for (k, &bk) in b.iter().enumerate() {
-                                match dofs.role(cell[k / dim] * dim + k % dim) {
-                                    DofRole::Prescribed => {}
-                                    DofRole::System(f) => add(&full_rhs[f], bk),
-                                    DofRole::Interior(_) => sq += bk * bk,
-                                }
-                            }
+                            let sq = scatter_full_residual(cell, dofs, b, full_rhs);
                             interior_sq[c].store(sq.to_bits(), Ordering::Relaxed);
                         }
                         condense_element(split, ke, residual.then_some(&mut re[..]), kept, cws).map_err(|_| {
@@ -570,6 +563,22 @@ impl System {
             (None, _) => None,
         }
     }
+}
+
+/// One cell's uncondensed right-hand side `b` added to `full_rhs` at its
+/// system rows; returns ‖b‖² over its condensed interior dofs (the parts of
+/// the Newton residual that the condensed system does not hold).
+fn scatter_full_residual(cell: &[usize], dofs: &DofMap, b: &[f64], full_rhs: &[AtomicU64]) -> f64 {
+    let dim = dofs.dim;
+    let mut sq = 0.0;
+    for (k, &bk) in b.iter().enumerate() {
+        match dofs.role(cell[k / dim] * dim + k % dim) {
+            DofRole::Prescribed => {}
+            DofRole::System(f) => add(&full_rhs[f], bk),
+            DofRole::Interior(_) => sq += bk * bk,
+        }
+    }
+    sq
 }
 
 /// `v` resized to `n` zeros in parallel (no page faults when it had the room),
