@@ -297,6 +297,13 @@ typedef struct {
    * Bad cells that no flip improved.
    */
   size_t bad_cells_left;
+  /**
+   * Interior edges split at their midpoint (each cell around them into
+   * two): edges opposite a vertex where a triangle of the mesh has two
+   * boundary edges and the boundary is smooth, which would squeeze the
+   * cells between that triangle and the boundary flat.
+   */
+  size_t edge_splits;
 } HocRepair;
 
 /**

@@ -209,3 +209,45 @@ fn the_c_abi_turns_the_repair_on_and_off_and_reports_it() {
         hoc_mesh_destroy(&mut m);
     }
 }
+
+/// A 2D domain whose boundary runs along the line y = 0 (tag 1) into the
+/// circle of radius 2 about (0, 2) (tag 2), tangentially at O = (0, 0),
+/// closed by three straight sides. Triangle (A, O, B) has both its boundary
+/// edges at O; curved, they leave O along the same tangent.
+fn smooth_hinge() -> (LinearMesh, ShapeProjector) {
+    let b = 2.0 - 3f64.sqrt();
+    let mesh = LinearMesh {
+        dim: 2,
+        coords: vec![-1.0, 0.0, 0.0, 0.0, 1.0, b, 1.0, 1.5, -1.0, 1.5],
+        cells: vec![0, 1, 2, 0, 2, 3, 0, 3, 4],
+        facets: vec![0, 1, 1, 2, 2, 3, 3, 4, 4, 0],
+        facet_tags: vec![1, 2, 3, 4, 5],
+        feature_edges: vec![],
+        feature_edge_tags: vec![],
+    };
+    let mut projector = ShapeProjector::new();
+    for (tag, shape) in [(1, "line:0,0,0,1,0,0"), (2, "circle:0,2,2"), (3, "line:1,0,0,0,1,0"), (4, "line:0,1.5,0,1,0,0"), (5, "line:-1,0,0,0,1,0")] {
+        projector.insert(tag, Shape::parse(shape).unwrap());
+    }
+    (mesh, projector)
+}
+
+#[test]
+fn a_cell_squeezed_by_a_smooth_boundary_is_split_and_curves_well() {
+    let (mesh, projector) = smooth_hinge();
+    for order in 2..=4 {
+        // Without the repair (and the optimisation), det J at O tends to 0:
+        // min Q3 0.007 at p = 2, inverted at p = 3 and 4.
+        match curve(&mesh, &projector, &CurveOptions { order, ..opts(false) }, &mut |_| true) {
+            Ok(c) => assert!(c.report.quality.min_q3 < 0.05, "p = {order}: {}", c.report.quality.min_q3),
+            Err(e) => assert!(matches!(e, Error::InvalidElement { cell: Some(0), .. }), "p = {order}: {e}"),
+        }
+        // The repair splits A–B at its midpoint, the cap and the cell above it in two each.
+        let c = curve(&mesh, &projector, &CurveOptions { order, ..opts(true) }, &mut |_| true).unwrap();
+        let r = &c.report;
+        assert_eq!((r.repair.edge_splits, r.repair.cells_removed, r.repair.cells_added), (1, 2, 4), "{:?}", r.repair);
+        assert_eq!((r.cells, &r.input_cell[..]), (5, &[2, 0, 0, 1, 1][..]));
+        assert_eq!(r.quality.n_certified_invalid, 0);
+        assert!(r.quality.min_q3 > 0.75, "p = {order}: {}", r.quality.min_q3);
+    }
+}

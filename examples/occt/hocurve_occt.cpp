@@ -165,7 +165,8 @@ int main(int argc, char **argv) {
         << ",\n  \"repair\": {\"bad_cells\": " << rep.bad_cells << ", \"flips\": "
         << rep.flips_23 + rep.flips_32 + rep.edge_removals + rep.flips_22 << ", \"surface_caps\": " << rep.surface_caps
         << ", \"cells_removed\": " << rep.cells_removed << ", \"cells_added\": " << rep.cells_added
-        << ", \"bad_cells_left\": " << rep.bad_cells_left << "}"
+        << ", \"bad_cells_left\": " << rep.bad_cells_left
+        << ", \"edge_splits\": " << rep.edge_splits << "}"
         << ",\n  \"elastic_stop\": " << (opt.elastic_stopped ? json_number(opt.elastic_load) : std::string("null"))
         << ",\n  \"elastic_restarted\": " << (opt.elastic_restarted ? "true" : "false")
         << ",\n  \"optimization\": {\"ran\": " << (opt.ran ? "true" : "false") << ", \"target_cells\": "

@@ -277,6 +277,11 @@ pub struct HocRepair {
     pub cells_added: usize,
     /// Bad cells that no flip improved.
     pub bad_cells_left: usize,
+    /// Interior edges split at their midpoint (each cell around them into
+    /// two): edges opposite a vertex where a triangle of the mesh has two
+    /// boundary edges and the boundary is smooth, which would squeeze the
+    /// cells between that triangle and the boundary flat.
+    pub edge_splits: usize,
 }
 
 /// Projects `n_points` points (`dim` interleaved coordinates each, `dim` the
@@ -1239,6 +1244,7 @@ pub unsafe extern "C" fn hoc_mesh_repair_summary(mesh: *const HocMesh, out: *mut
             cells_removed: r.cells_removed,
             cells_added: r.cells_added,
             bad_cells_left: r.bad_cells_left,
+            edge_splits: r.edge_splits,
         };
         Ok(())
     })

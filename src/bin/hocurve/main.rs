@@ -502,7 +502,7 @@ fn quality_json(q: &MeshQuality) -> String {
 fn repair_json(r: &hocurve::mesh::RepairSummary) -> String {
     format!(
         "{{\"bad_cells\": {}, \"surface_cells\": {}, \"bulge_cells\": {}, \"flips_23\": {}, \"flips_32\": {}, \
-         \"edge_removals\": {}, \"flips_22\": {}, \"surface_caps\": {}, \"cells_removed\": {}, \"cells_added\": {}, \"bad_cells_left\": {}}}",
+         \"edge_removals\": {}, \"flips_22\": {}, \"surface_caps\": {}, \"cells_removed\": {}, \"cells_added\": {}, \"bad_cells_left\": {}, \"edge_splits\": {}}}",
         r.bad_cells,
         r.surface_cells,
         r.bulge_cells,
@@ -513,7 +513,8 @@ fn repair_json(r: &hocurve::mesh::RepairSummary) -> String {
         r.surface_caps,
         r.cells_removed,
         r.cells_added,
-        r.bad_cells_left
+        r.bad_cells_left,
+        r.edge_splits
     )
 }
 

@@ -113,6 +113,11 @@ impl Criteria {
         self.boundary.contains(f)
     }
 
+    /// Whether vertex `v` is on the boundary.
+    pub fn is_boundary_vertex(&self, v: usize) -> bool {
+        self.boundary_vertex[v]
+    }
+
     /// Whether the cell can be bad at all: a bad cell has all its vertices
     /// on the boundary (a surface cell by definition, a bulge cell because
     /// its facet and the opposite vertex are).

@@ -1,7 +1,8 @@
 //! Topological repair of the linear mesh before curving: cells that cannot
-//! stay valid once curved with their vertices fixed are flipped away.
+//! stay valid once curved with their vertices fixed are flipped away or split.
 //!
-//! Two steps, each optional ([`crate::curve::CurveOptions`]):
+//! Three steps ([`crate::curve::CurveOptions`]: the first with
+//! `remove_caps`, the other two with `repair`):
 //!
 //! 1. [`caps`]: boundary caps (tets with two faces on one smooth surface,
 //!    less than 45° apart) are removed, which flips their surface edge:
@@ -27,6 +28,10 @@
 //!    surface edge the cap's two faces share, along which curving squeezes
 //!    whatever cells are there (unless caps are kept: then only flips). The
 //!    new facets are measured again before the next sweep.
+//! 3. [`split`]: an interior edge opposite a vertex where a triangle of the
+//!    mesh has two boundary edges on a smooth boundary (the cells between
+//!    that triangle and the boundary would be squeezed flat there) is split
+//!    at its midpoint, each cell around it into two; a new interior vertex.
 //!
 //! The cells of the result are the cells of the input that no step touched,
 //! in their order, then the new cells. Each maps to an input cell (see
@@ -37,6 +42,7 @@ pub mod caps;
 pub mod detect;
 pub mod flips;
 mod geom;
+pub mod split;
 #[cfg(test)]
 mod tests;
 
@@ -82,6 +88,9 @@ pub struct RepairSummary {
     pub cells_added: usize,
     /// Bad cells in the result: no flip improved them (left to the curving).
     pub bad_cells_left: usize,
+    /// Interior edges split at their midpoint, each cell around them into
+    /// two, because a smooth boundary would squeeze a cell flat ([`split`]).
+    pub edge_splits: usize,
 }
 
 impl RepairSummary {
@@ -162,13 +171,19 @@ pub fn repair_with<E>(
     let n_kept = r.mesh.n_cells() - s.cells_added;
     let same: Vec<Option<usize>> =
         (0..r.mesh.n_cells()).map(|i| if i < n_kept { same[r.input_cell[i]] } else { None }).collect();
-    let cur = r.mesh;
+    // Flips keep the facets, so the bulges still hold.
+    let split = split::split_squeezed(&r.mesh, &bulge);
+    summary.edge_splits = split.edges;
+    let same: Vec<Option<usize>> =
+        split.parent.iter().zip(&split.whole).map(|(&c, &w)| if w { same[c] } else { None }).collect();
+    let o: Vec<&[usize]> = split.parent.iter().map(|&c| o[c].as_slice()).collect();
+    let cur = split.mesh;
     let untouched = same.iter().flatten().count();
     summary.cells_removed = n - untouched;
     summary.cells_added = cur.n_cells() - untouched;
     let d = mesh.dim;
     let input_cell = (0..cur.n_cells())
-        .map(|c| same[c].unwrap_or_else(|| locate(mesh, &cur.cells[c * (d + 1)..(c + 1) * (d + 1)], &o[c])))
+        .map(|c| same[c].unwrap_or_else(|| locate(mesh, &cur, &cur.cells[c * (d + 1)..(c + 1) * (d + 1)], o[c])))
         .collect();
     Ok(Repaired { mesh: cur, input_cell, summary })
 }
@@ -240,7 +255,7 @@ fn flip_round(
         if c < n {
             input_cell.push(c);
         } else {
-            input_cell.push(locate(base, &w.cells[c][..=d], &w.origin[c]));
+            input_cell.push(locate(base, base, &w.cells[c][..=d], &w.origin[c]));
             summary.cells_added += 1;
         }
         summary.bad_cells_left += w.assessment[c].is_bad() as usize;
@@ -250,12 +265,14 @@ fn flip_round(
     (Repaired { mesh: out, input_cell, summary }, origin)
 }
 
-/// The cell among `candidates` (cells of `mesh`) that contains the centroid of `cell`.
-fn locate(mesh: &LinearMesh, cell: &[usize], candidates: &[usize]) -> usize {
+/// The cell among `candidates` (cells of `mesh`) that contains the centroid
+/// of `cell`, whose vertices are those of `at` (`mesh`'s, and any added
+/// after them).
+fn locate(mesh: &LinearMesh, at: &LinearMesh, cell: &[usize], candidates: &[usize]) -> usize {
     let d = mesh.dim;
     let mut g = [0.0; 3];
     for &v in cell {
-        let x = mesh.vertex(v);
+        let x = at.vertex(v);
         for k in 0..3 {
             g[k] += x[k] / (d + 1) as f64;
         }
