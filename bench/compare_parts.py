@@ -13,9 +13,10 @@ cad folder's README), three runs, each timed as a whole (wall seconds):
              When it stops on an inverted cell it writes no mesh; it is then run
              again with --adaptive off (the step is kept, the mesh written with its
              invalid cells) so that the table can say how many cells are invalid
-             ("fails; min Q3"); that run's time is shown in brackets. "N caps" in
-             the cells column: cells hocurve removed as boundary caps (the
-             measured mesh has that many fewer cells).
+             ("fails; min Q3"); that run's time is shown in brackets. "N caps, M
+             edges split" in the cells column: cells hocurve removed as boundary
+             caps, and interior edges its repair split (each cell around one
+             into two), so the measured mesh has other cells than gmsh's.
   elastic    gmsh MODEL -3 -order P -setnumber Mesh.HighOrderOptimize 3   (elastic analogy)
   optimiser  the same with Mesh.HighOrderOptimize 2   (elastic analogy, then the optimiser)
   linear     gmsh MODEL -3 -order 1   (the linear meshing alone, for the curving-only table:
@@ -164,7 +165,7 @@ def run_one(args, name, path, h, p, tool):
     if tool == "hocurve" and os.path.exists(base + ".report.json"):
         with open(base + ".report.json") as f:
             rep = json.load(f)
-        for k in ("cells_given", "placement_fallbacks", "placement_projected", "distorted_facets"):
+        for k in ("cells_given", "placement_fallbacks", "placement_projected", "distorted_facets", "repair"):
             if k in rep:
                 row[k] = rep[k]
         # Its own split of the wall time: STEP import and linear meshing, then curving.
@@ -218,7 +219,12 @@ def table(rows, models, orders):
         cs = " / ".join(str(c) for c in cells) if cells else "–"
         h = rs[0]
         if h and h.get("cells_given") and h.get("cells") and h["cells"] != h["cells_given"]:
-            cs += f" ({h['cells_given'] - h['cells']} caps)"
+            rep = h.get("repair", {})
+            caps = rep.get("removed_caps", h["cells_given"] - h["cells"])
+            notes = [f"{caps} caps"] if caps else []
+            if rep.get("edge_splits"):
+                notes.append(f"{rep['edge_splits']} edges split")
+            cs += f" ({', '.join(notes)})" if notes else ""
         line = [name, str(p), cs]
         for r in rs:
             line += list(fmt_q(r))

@@ -128,10 +128,10 @@ int main(int argc, char **argv) {
     auto t_end = std::chrono::steady_clock::now();
     auto secs = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
 
-    std::printf("%s: dim %d, %zu vertices, %zu cells given, %zu after cap removal, %zu boundary facets, "
-                "%zu feature edges\n",
-                model.c_str(), dim, lm.coords.size() / dim, lm.cells.size() / (dim + 1), cc.first,
-                lm.facet_tags.size(), lm.edge_tags.size());
+    std::printf("%s: dim %d, %zu vertices, %zu cells given, %zu boundary facets, %zu feature edges; "
+                "%zu caps removed, %zu edges split, %zu cells curved\n",
+                model.c_str(), dim, lm.coords.size() / dim, lm.cells.size() / (dim + 1), lm.facet_tags.size(),
+                lm.edge_tags.size(), rep.removed_caps, rep.edge_splits, cc.first);
     std::printf("p = %d: %zu nodes, min Q1 %.4f, min Q3 %.4f, mean Q3 %.4f, %zu invalid, %.2f s; wrote %s\n",
                 order, nodes, q.min_q1, q.min_q3, q.mean_q3, q.n_invalid, secs(t0, t_end), output.c_str());
     const occt::Placer *pl = proj.placer.get();
@@ -162,7 +162,7 @@ int main(int argc, char **argv) {
         << ",\n  \"distorted_facets\": " << (pl ? pl->distorted_facets : 0)
         << ",\n  \"pole_facets\": " << (pl ? pl->pole_facets : 0) << ",\n  \"seam_facets\": " << (pl ? pl->seam_facets : 0)
         << ",\n  \"projector_calls\": " << proj.calls
-        << ",\n  \"repair\": {\"bad_cells\": " << rep.bad_cells << ", \"flips\": "
+        << ",\n  \"repair\": {\"removed_caps\": " << rep.removed_caps << ", \"bad_cells\": " << rep.bad_cells << ", \"flips\": "
         << rep.flips_23 + rep.flips_32 + rep.edge_removals + rep.flips_22 << ", \"surface_caps\": " << rep.surface_caps
         << ", \"cells_removed\": " << rep.cells_removed << ", \"cells_added\": " << rep.cells_added
         << ", \"bad_cells_left\": " << rep.bad_cells_left
