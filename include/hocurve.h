@@ -701,8 +701,12 @@ HocStatus hoc_mesh_set_remove_caps(HocMesh *mesh, int remove);
  * removes such cells by local flips (2-3, 3-2, edge removal; edge flips in
  * 2D) that keep the boundary facets and vertices; unless caps are kept
  * (hoc_mesh_set_remove_caps), such a cell that no flip helps and that is a
- * cap whose faces meet at more than 45° is removed like a cap. The curved
- * mesh may then have other cells than the straight one (see hoc_mesh_cell_count,
+ * cap whose faces meet at more than 45° is removed like a cap. Last, an
+ * interior edge opposite a vertex where a triangle has two boundary edges
+ * on a smooth boundary (which would squeeze the cells between that
+ * triangle and the boundary flat there) is split at its midpoint, a new
+ * interior vertex. The curved
+ * mesh may then have other cells and nodes than the straight one (see hoc_mesh_cell_count,
  * hoc_mesh_get_input_cells and hoc_mesh_repair_summary). Takes effect at
  * the next run.
  *

@@ -379,6 +379,29 @@ pub struct BlockJacobi {
     regularised: usize,
 }
 
+/// R, block-diagonal and lower triangular, with R Rᵀ = D⁻¹ ([`BlockJacobi::inverse_factor`]).
+pub struct BlockFactor {
+    block: usize,
+    /// Row-major lower factor of each block.
+    r: Vec<f64>,
+}
+
+impl BlockFactor {
+    /// y = R x, or y = Rᵀ x with `transposed`.
+    pub fn apply_into(&self, x: &[f64], y: &mut [f64], transposed: bool) {
+        let (b, bb) = (self.block, self.block * self.block);
+        y.par_chunks_mut(CHUNK * b).zip(x.par_chunks(CHUNK * b)).enumerate().for_each(|(i, (yc, xc))| {
+            let r = &self.r[i * CHUNK * bb..];
+            for (k, (yb, xb)) in yc.chunks_exact_mut(b).zip(xc.chunks_exact(b)).enumerate() {
+                let m = &r[k * bb..(k + 1) * bb];
+                for (ii, yi) in yb.iter_mut().enumerate() {
+                    *yi = (0..b).map(|j| if transposed { m[j * b + ii] } else { m[ii * b + j] } * xb[j]).sum();
+                }
+            }
+        });
+    }
+}
+
 /// A diagonal block whose Cholesky pivot falls below this fraction of its
 /// diagonal entry is nearly singular (its inverse would be mostly round-off).
 pub const NEAR_SINGULAR_PIVOT: f64 = 1e-10;
@@ -464,6 +487,19 @@ impl BlockJacobi {
         });
     }
 
+    /// R with R Rᵀ = D⁻¹, block by block (the Cholesky factors of the
+    /// inverted blocks): D⁻¹A is similar to the symmetric Rᵀ A R.
+    pub fn inverse_factor(&self) -> BlockFactor {
+        let (b, bb) = (self.block, self.block * self.block);
+        let mut r = vec![0.0; self.inv.len()];
+        r.par_chunks_mut(bb).zip(self.inv.par_chunks(bb)).for_each(|(out, inv)| {
+            // The inverse of an SPD block is SPD; round-off cannot make a 3 × 3 one indefinite.
+            let (l, _) = cholesky_block(inv, b).expect("the inverse of an SPD block is SPD");
+            out.copy_from_slice(&l[..bb]);
+        });
+        BlockFactor { block: b, r }
+    }
+
     /// ‖D⁻¹A‖_∞, the largest absolute row sum of D⁻¹A for the matrix held by
     /// `op` with lower-triangle `values` (D its blocks inverted here): an
     /// upper bound of every eigenvalue of D⁻¹A (Gershgorin), computed in
@@ -509,8 +545,10 @@ impl BlockJacobi {
 /// positive definite, else the smallest ratio of a pivot (before its square
 /// root) to its diagonal entry (1 for a diagonal block; near 0 when a column
 /// is nearly a combination of the previous ones).
-fn invert_spd_block(a: &[f64], b: usize, out: &mut [f64]) -> Option<f64> {
-    // L Lᵀ = A, then A⁻¹ column by column.
+/// The lower Cholesky factor L (row-major) of the SPD block `a` (b × b),
+/// and the smallest ratio of a pivot² to its diagonal entry; None if a pivot
+/// is not positive.
+fn cholesky_block(a: &[f64], b: usize) -> Option<([f64; 9], f64)> {
     let mut l = [0.0; 9];
     let mut min_ratio = f64::INFINITY;
     for j in 0..b {
@@ -532,6 +570,12 @@ fn invert_spd_block(a: &[f64], b: usize, out: &mut [f64]) -> Option<f64> {
             l[i * b + j] = s / d;
         }
     }
+    Some((l, min_ratio))
+}
+
+fn invert_spd_block(a: &[f64], b: usize, out: &mut [f64]) -> Option<f64> {
+    // L Lᵀ = A, then A⁻¹ column by column.
+    let (l, min_ratio) = cholesky_block(a, b)?;
     for c in 0..b {
         let mut y = [0.0; 3];
         for i in 0..b {
@@ -670,7 +714,7 @@ pub(crate) mod tests {
             let mut op = SymmetricOperator::try_new(&a).unwrap();
             op.update(&v);
             let bound = BlockJacobi::try_new(&a, &v, block).unwrap().row_sum_bound(&op, &v);
-            let params = ChebyshevParams { power_iterations: 2000, ..Default::default() };
+            let params = ChebyshevParams { power_iterations: 60, ..Default::default() };
             let lambda = Chebyshev::try_new(&op, &a, &v, block, params).unwrap().estimate();
             let safe = Chebyshev::try_new_safe(&op, &a, &v, block, ChebyshevParams::default()).unwrap();
             println!("block {block}: lambda_max {lambda:.4}, bound {bound:.4}");

@@ -61,7 +61,8 @@ USAGE:
       with their vertices fixed: all vertices on one surface that bulges into
       the domain, or a boundary facet bulging past half the height of the
       opposite vertex, itself on the boundary (measured by projecting a few
-      points of each facet);
+      points of each facet), and splits the interior edges that let a smooth
+      boundary squeeze a cell flat at a vertex;
       the report's repair section says what it found and did.
       Adaptive load stepping (default on, off for --formulation linear): an
       increment that inverts a cell (certified det J bounds) or whose Newton
