@@ -4,7 +4,8 @@
 //
 //   hocurve-occt MODEL.step|.brep --order P [--mesh-size H] [--curvature N] [--formulation F]
 //                [--poisson NU] [--increments N] [--threads T] [--placement parametric|closest]
-//                [--adaptive on|off] --output OUT.msh|.vtu [--report R.json]
+//                [--adaptive on|off] [--optimize on|off] [--caps remove|keep]
+//                --output OUT.msh|.vtu [--report R.json]
 #include "occt_pipeline.hpp"
 
 #include <chrono>
@@ -18,7 +19,7 @@ namespace {
 void usage() {
   std::cerr << "usage: hocurve-occt MODEL.step|.brep --order P [--mesh-size H] [--curvature N] [--formulation "
                "linear|ile|iil|cil|nonlinear] [--poisson NU] [--increments N] [--threads T] "
-               "[--placement parametric|closest] [--adaptive on|off] [--optimize on|off] "
+               "[--placement parametric|closest] [--adaptive on|off] [--optimize on|off] [--caps remove|keep] "
                "--output OUT.msh|.vtu [--report R.json]\n";
 }
 
@@ -53,7 +54,8 @@ std::string solves_json(const hocurve::Mesh &mesh) {
 }  // namespace
 
 int main(int argc, char **argv) {
-  std::string model, output, report, formulation = "ile", placement = "parametric", adaptive = "on", optimize = "on";
+  std::string model, output, report, formulation = "ile", placement = "parametric", adaptive = "on", optimize = "on",
+              caps = "remove";
   int order = 0, increments = 1, threads = 0, per_2pi = 12;
   double h = 0.0, poisson = 0.3;
   for (int i = 1; i < argc; ++i) {
@@ -75,6 +77,7 @@ int main(int argc, char **argv) {
     else if (a == "--placement") placement = value();
     else if (a == "--adaptive") adaptive = value();
     else if (a == "--optimize") optimize = value();
+    else if (a == "--caps") caps = value();
     else if (a == "--output") output = value();
     else if (a == "--report") report = value();
     else if (a == "-h" || a == "--help") {
@@ -87,7 +90,8 @@ int main(int argc, char **argv) {
     }
   }
   if (model.empty() || output.empty() || order < 1 || (placement != "parametric" && placement != "closest") ||
-      (adaptive != "on" && adaptive != "off")) {
+      (adaptive != "on" && adaptive != "off") || (optimize != "on" && optimize != "off") ||
+      (caps != "remove" && caps != "keep")) {
     usage();
     return 2;
   }
@@ -117,6 +121,7 @@ int main(int argc, char **argv) {
     // ends with the mesh and its invalid cells counted (exit status 3).
     if (adaptive == "off") mesh.set_adaptive_stepping(0);
     if (optimize == "off") mesh.set_optimize(false);
+    if (caps == "keep") mesh.set_remove_caps(false);
     mesh.run_increments(increments);
     auto t_curve = std::chrono::steady_clock::now();
     const HocQuality q = mesh.quality();
