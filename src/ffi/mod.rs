@@ -31,7 +31,7 @@ use crate::Error;
 /// The library's version (hoc_version gives it as a string); the header
 /// and the library linked must agree on it.
 pub const HOCURVE_VERSION_MAJOR: c_int = 0;
-pub const HOCURVE_VERSION_MINOR: c_int = 2;
+pub const HOCURVE_VERSION_MINOR: c_int = 3;
 pub const HOCURVE_VERSION_PATCH: c_int = 0;
 
 /// The defaults that every interface (C, C++, Fortran, the command line and
