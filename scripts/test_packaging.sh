@@ -116,6 +116,14 @@ for r in "${refuse[@]}"; do
     echo "find_package(hocurve ${r//;/ }) failed for another reason:"; tail -n 15 "$work/fv.log"; version_ok=0
   fi
 done
+# Every find_package(hocurve N.M) this checkout ships (tests, examples, docs)
+# must ask for the version being built, or the next bump leaves one behind.
+stale=$(cd "$root" && git ls-files 2>/dev/null | grep -E '(CMakeLists\.txt|\.cmake|\.md)$' \
+  | xargs grep -nE 'find_package\(hocurve [0-9]+\.[0-9]+[.0-9]* REQUIRED' 2>/dev/null \
+  | grep -vE "find_package\(hocurve $major\.$minor[ .)]" || true)
+if [ -n "$stale" ]; then
+  echo "find_package(hocurve ...) asks for another version than $major.$minor:"; echo "$stale"; version_ok=0
+fi
 if [ $version_ok = 1 ]; then
   pass "version ($version accepted for: ${accept[*]//;/ }; refused for: ${refuse[*]})"
 else
