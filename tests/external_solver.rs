@@ -121,7 +121,11 @@ fn full_csr_times_a_vector_equals_the_lower_triangle_product() {
 
 fn run(order: usize, solver: SolverChoice) -> CurvedMesh {
     let case = sphere_case();
-    let opts = CurveOptions { order, increments: 3, solver, ..Default::default() };
+    let mut opts = CurveOptions { order, increments: 3, solver, ..Default::default() };
+    // The elastic stage alone: the optimisation keeps or drops a patch's new
+    // positions by comparing qualities, so a difference at round-off level
+    // in the solves can make it keep another patch.
+    opts.optimize.enabled = false;
     curve(&case.mesh, &case.projector, &opts, &mut |_| true).unwrap()
 }
 

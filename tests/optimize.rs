@@ -206,3 +206,71 @@ fn polishing_raises_the_smallest_quality_when_no_cell_is_below_the_threshold() {
     assert_eq!(on.report.quality.n_certified_invalid, 0);
     assert_boundary_kept(&on);
 }
+
+/// The largest distance from the sphere of the curved boundary between its
+/// nodes: every cell face whose nodes all lie on the sphere, sampled at the
+/// points of the order-2p lattice that are not nodes.
+fn largest_distance_between_nodes(c: &CurvedMesh, radius: f64) -> f64 {
+    use hocurve::reference::{LagrangeBasis, NodeSet, NodeSpacing};
+    let m = &c.mesh;
+    let basis = LagrangeBasis::new(&NodeSet::new(m.simplex, m.order, m.spacing));
+    let nodes = basis.nodes();
+    let lattice = NodeSet::new(m.simplex, 2 * m.order, NodeSpacing::Equispaced);
+    let mut values = vec![0.0; basis.len()];
+    let mut worst: f64 = 0.0;
+    for cell in m.cells.chunks_exact(m.nodes_per_cell()) {
+        for o in 0..4 {
+            let on_face = |k: &[usize; 4]| k[o] == 0;
+            let on_sphere = (0..nodes.len())
+                .filter(|&a| on_face(&nodes.multi[a]))
+                .all(|a| matches!(m.constraint[cell[a]], NodeConstraint::OnEntity { .. }) || a < 4);
+            let vertices_on = (0..4).filter(|&v| v != o).all(|v| {
+                let x = m.node(cell[v]);
+                ((x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt() - radius).abs() < 1e-12
+            });
+            if !on_sphere || !vertices_on {
+                continue;
+            }
+            for i in (0..lattice.len()).filter(|&i| on_face(&lattice.multi[i])) {
+                basis.eval_into(&lattice.coords[i], &mut values);
+                let mut x = [0.0; 3];
+                for (a, &w) in values.iter().enumerate() {
+                    let y = m.node(cell[a]);
+                    (0..3).for_each(|d| x[d] += w * y[d]);
+                }
+                worst = worst.max(((x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt() - radius).abs());
+            }
+        }
+    }
+    worst
+}
+
+/// The polish slides boundary nodes along the sphere where that raises the
+/// smallest Q3, but keeps a slide only if the boundary between the nodes
+/// stays as close to the sphere as before: the largest distance does not
+/// grow.
+#[test]
+fn the_polish_slides_boundary_nodes_without_moving_the_boundary_away_from_the_sphere() {
+    let (mesh, projector) = coarse_sphere();
+    let mut opts = CurveOptions { order: 4, formulation: Formulation::Linear, ..Default::default() };
+    opts.optimize.enabled = false;
+    let q_off = run(&mesh, &projector, &opts).unwrap().report.quality.min_q3;
+    opts.optimize.enabled = true;
+    opts.optimize.threshold = 0.9 * q_off;
+    opts.optimize.slide = false;
+    let fixed = run(&mesh, &projector, &opts).unwrap();
+    opts.optimize.slide = true;
+    let sliding = run(&mesh, &projector, &opts).unwrap();
+    assert_boundary_kept(&sliding);
+    let m = &sliding.mesh;
+    let slid = (0..m.n_nodes())
+        .filter(|&n| matches!(m.constraint[n], NodeConstraint::OnEntity { .. }) && m.node(n) != fixed.mesh.node(n))
+        .count();
+    let (d_fixed, d_sliding) =
+        (largest_distance_between_nodes(&fixed, RADIUS), largest_distance_between_nodes(&sliding, RADIUS));
+    let (q_fixed, q_sliding) = (fixed.report.quality.min_q3, sliding.report.quality.min_q3);
+    eprintln!("{slid} nodes slid; min Q3 {q_fixed} -> {q_sliding}; largest distance {d_fixed:e} -> {d_sliding:e}");
+    assert!(slid > 0, "no boundary node slid");
+    assert!(d_fixed > 0.0 && d_sliding <= d_fixed * (1.0 + 1e-9), "{d_fixed:e} -> {d_sliding:e}");
+    assert!(q_sliding >= q_fixed, "min Q3 {q_fixed} -> {q_sliding}");
+}

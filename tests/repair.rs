@@ -226,7 +226,13 @@ fn smooth_hinge() -> (LinearMesh, ShapeProjector) {
         feature_edge_tags: vec![],
     };
     let mut projector = ShapeProjector::new();
-    for (tag, shape) in [(1, "line:0,0,0,1,0,0"), (2, "circle:0,2,2"), (3, "line:1,0,0,0,1,0"), (4, "line:0,1.5,0,1,0,0"), (5, "line:-1,0,0,0,1,0")] {
+    for (tag, shape) in [
+        (1, "line:0,0,0,1,0,0"),
+        (2, "circle:0,2,2"),
+        (3, "line:1,0,0,0,1,0"),
+        (4, "line:0,1.5,0,1,0,0"),
+        (5, "line:-1,0,0,0,1,0"),
+    ] {
         projector.insert(tag, Shape::parse(shape).unwrap());
     }
     (mesh, projector)

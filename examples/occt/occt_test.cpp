@@ -9,7 +9,7 @@
 // OCCT_PLACEMENT=closest uses closest-point projection instead of the
 // parametric placement (occt_pipeline.hpp), for comparison; OCCT_DEBUG=1
 // prints the between-node distance per CAD entity and the feature-edge
-// nodes' distance per (curve, adjacent face).
+// nodes' distance per (curve, adjacent face), and what the repair changed.
 //   occt_test fail MODEL H                    a projector failing on one CAD entity
 //
 // `check`: no invalid cell; every high-order node classified on a CAD face
@@ -20,7 +20,8 @@
 // curved boundary between the nodes and prints the largest distance to CAD;
 // with the parametric placement that distance must fall at every order and
 // by at least FALL times from PMIN to PMAX when PMAX >= PMIN + 3; no node may
-// fall back to closest point.
+// fall back to closest point. The boundary is classified on the mesh after the
+// run, whose repair may flip, remove and split cells and so renumber the nodes.
 // `seam`: on a sphere, a torus, a cylinder and a cone made with
 // gmsh::model::occ and meshed at h = 0.25..0.3, every boundary facet has
 // nodes of order 4 placed by the parametric placement; none may fall back to
@@ -124,6 +125,7 @@ struct Facet {
   int tag;                      // CAD surface (3D) / curve (2D)
   int64_t v[3];                 // vertices (v[2] unused in 2D)
   std::vector<int64_t> nodes;   // every node on it, vertices included
+  std::vector<std::array<double, 2>> st;  // each node's (s, t): its barycentric coordinates of v[1], v[2]
 };
 
 Row curve_and_check(const occt::LinearMesh &lm, int p) {
@@ -134,12 +136,17 @@ Row curve_and_check(const occt::LinearMesh &lm, int p) {
   hocurve::Mesh mesh = occt::make_mesh(lm, proj);
   mesh.set_threads(2);
   mesh.set_order(p);
-  const auto cc = mesh.cell_count();
-  const std::size_t n_cells = cc.first, npc = cc.second, n_nodes = mesh.node_count();
+  // The straight mesh before the run. Its repair may flip, remove and split
+  // cells (new vertices appended, the input ones kept, boundary facets
+  // unchanged), which renumbers the high-order nodes: the boundary is
+  // classified on the mesh after the run, with the reference node
+  // coordinates and the boundary vertices' positions taken from this one.
+  const std::size_t npc = mesh.cell_count().second;
   const std::vector<double> x0 = mesh.nodes();
-  const std::vector<int64_t> cells = mesh.cells(HOC_ORDERING_NATIVE);
+  const std::vector<int64_t> cells0 = mesh.cells(HOC_ORDERING_NATIVE);
+  const std::size_t n_cells0 = cells0.size() / npc;
 
-  // Facets of the (cap-free) straight mesh: a cell face bounding one cell.
+  // Boundary facets and feature edges of the linear mesh, by sorted vertices.
   std::map<Key, int> facet_tag, feature;
   std::map<int64_t, std::set<int>> vertex_tags;
   for (std::size_t f = 0; f < lm.facet_tags.size(); ++f) {
@@ -149,7 +156,6 @@ Row curve_and_check(const occt::LinearMesh &lm, int p) {
   }
   for (std::size_t e = 0; e < lm.edge_tags.size(); ++e)
     feature[occt::detail::sorted(-1, lm.edges[2 * e], lm.edges[2 * e + 1])] = lm.edge_tags[e];
-  std::map<Key, int> face_count;
   auto face_key = [&](const int64_t *c, int omit) {
     int64_t f[3] = {-1, -1, -1};
     int j = 0;
@@ -157,8 +163,6 @@ Row curve_and_check(const occt::LinearMesh &lm, int p) {
       if (i != omit) f[j++] = c[i];
     return occt::detail::sorted(f[0], f[1], f[2]);
   };
-  for (std::size_t c = 0; c < n_cells; ++c)
-    for (int o = 0; o < nv; ++o) ++face_count[face_key(&cells[c * npc], o)];
 
   // Barycentric coordinates of node a of cell c in the straight cell.
   auto bary = [&](const int64_t *c, int64_t node, double *lam) {
@@ -190,7 +194,78 @@ Row curve_and_check(const occt::LinearMesh &lm, int p) {
     lam[0] = 1 - lam[1] - lam[2] - lam[3];
   };
 
+  // Every cell numbers its nodes in the same native order, so local node a has
+  // the same barycentric coordinates lam_ref[a] in every cell, new cells of the
+  // repair included: taken from the best-shaped straight cell (|det| over the
+  // longest edge^dim, least rounding), checked on all, zeros made exact.
+  std::size_t ref = 0;
+  double best = -1;
+  for (std::size_t c = 0; c < n_cells0; ++c) {
+    const int64_t *cell = &cells0[c * npc];
+    double e[3][3] = {}, longest = 0;
+    for (int i = 1; i < nv; ++i)
+      for (int k = 0; k < dim; ++k) e[i - 1][k] = x0[dim * cell[i] + k] - x0[dim * cell[0] + k];
+    for (int i = 0; i < nv; ++i)
+      for (int j = i + 1; j < nv; ++j) {
+        double l = 0;
+        for (int k = 0; k < dim; ++k) l += std::pow(x0[dim * cell[i] + k] - x0[dim * cell[j] + k], 2);
+        longest = std::max(longest, std::sqrt(l));
+      }
+    const double det = dim == 2 ? e[0][0] * e[1][1] - e[0][1] * e[1][0]
+                                : e[0][0] * (e[1][1] * e[2][2] - e[1][2] * e[2][1]) -
+                                      e[0][1] * (e[1][0] * e[2][2] - e[1][2] * e[2][0]) +
+                                      e[0][2] * (e[1][0] * e[2][1] - e[1][1] * e[2][0]);
+    const double shape = std::fabs(det) / std::pow(longest, dim);
+    if (shape > best) best = shape, ref = c;
+  }
+  std::vector<std::array<double, 4>> lam_ref(npc);
+  for (std::size_t a = 0; a < npc; ++a) {
+    bary(&cells0[ref * npc], cells0[ref * npc + a], lam_ref[a].data());
+    for (int i = 0; i < nv; ++i)
+      if (std::fabs(lam_ref[a][i]) < 1e-9) lam_ref[a][i] = 0;
+  }
+  for (std::size_t c = 0; c < n_cells0; ++c)
+    for (std::size_t a = 0; a < npc; ++a) {
+      double lam[4];
+      bary(&cells0[c * npc], cells0[c * npc + a], lam);
+      for (int i = 0; i < nv; ++i)
+        CHECK(std::fabs(lam[i] - lam_ref[a][i]) <= 1e-6,
+              "p = %d: node %zu of straight cell %zu has barycentric coordinate %d %.9g, %.9g in cell %zu", p, a, c, i,
+              lam[i], lam_ref[a][i], ref);
+    }
+
+  auto t0 = std::chrono::steady_clock::now();
+  mesh.run_increments(1);
+  double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  CHECK(proj.calls > 0, "the projector was never called");
+  const HocQuality q = mesh.quality();
+  CHECK(q.n_invalid == 0, "p = %d: %zu invalid cells (min Q3 %g)", p, q.n_invalid, q.min_q3);
+  const auto cc = mesh.cell_count();
+  const std::size_t n_cells = cc.first, n_nodes = mesh.node_count();
+  CHECK(cc.second == npc, "p = %d: %zu nodes per cell after the run, %zu before", p, cc.second, npc);
+  const std::vector<int64_t> cells = mesh.cells(HOC_ORDERING_NATIVE);
+  const std::vector<double> x = mesh.nodes();
+  if (std::getenv("OCCT_DEBUG")) {
+    const HocRepair r = mesh.repair_summary();
+    std::fprintf(stderr, "  p=%d repair: %zu edge splits, %zu caps; cells %zu -> %zu, nodes %zu -> %zu\n", p,
+                 r.edge_splits, r.surface_caps, n_cells0, n_cells, x0.size() / dim, n_nodes);
+  }
+  for (auto &vt : vertex_tags)
+    for (int k = 0; k < dim; ++k)
+      CHECK(x[dim * vt.first + k] == x0[dim * vt.first + k], "boundary vertex %lld moved", (long long)vt.first);
+
+  // Facets of the curved (cap-free) mesh: a cell face bounding one cell.
+  std::map<Key, int> face_count;
+  for (std::size_t c = 0; c < n_cells; ++c)
+    for (int o = 0; o < nv; ++o) ++face_count[face_key(&cells[c * npc], o)];
+
   // Classify: node -> CAD surface(s) (or 2D curve), node -> CAD curve (3D feature edges).
+  const bool tri = dim == 3;
+  const std::set<int> no_tags;
+  auto tags_of = [&](int64_t v) -> const std::set<int> & {
+    auto it = vertex_tags.find(v);
+    return it == vertex_tags.end() ? no_tags : it->second;
+  };
   std::vector<Facet> facets;
   std::map<int64_t, std::set<int>> on_face;
   std::map<int64_t, int> on_curve;
@@ -204,10 +279,10 @@ Row curve_and_check(const occt::LinearMesh &lm, int p) {
       auto it = facet_tag.find(k);
       if (it != facet_tag.end()) tag = it->second;
       else {  // a face made by removing a boundary cap: on a surface all its vertices are on
-        std::set<int> common = vertex_tags[k[0]];
+        std::set<int> common = tags_of(k[0]);
         for (int i = 1; i < dim; ++i) {
           std::set<int> next;
-          for (int t : vertex_tags[k[i]])
+          for (int t : tags_of(k[i]))
             if (common.count(t)) next.insert(t);
           common = next;
         }
@@ -217,20 +292,20 @@ Row curve_and_check(const occt::LinearMesh &lm, int p) {
         ++unclassified_facets;
         continue;
       }
-      Facet f{tag, {-1, -1, -1}, {}};
-      int j = 0;
+      Facet f{tag, {-1, -1, -1}, {}, {}};
+      int fv[3] = {-1, -1, -1}, j = 0;  // the facet's vertices' local indices
       for (int i = 0; i < nv; ++i)
-        if (i != o) f.v[j++] = cell[i];
+        if (i != o) fv[j] = i, f.v[j++] = cell[i];
       for (std::size_t a = 0; a < npc; ++a) {
-        double lam[4];
-        bary(cell, cell[a], lam);
-        if (std::fabs(lam[o]) > 1e-9) continue;
+        const double *lam = lam_ref[a].data();
+        if (lam[o] != 0) continue;
         f.nodes.push_back(cell[a]);
+        f.st.push_back({lam[fv[1]], tri ? lam[fv[2]] : 0.0});
         if (a < (std::size_t)nv) continue;  // a vertex
         on_face[cell[a]].insert(tag);
         if (dim == 3)  // on an edge of the face: lam of one more vertex vanishes
           for (int i = 0; i < 4; ++i)
-            if (i != o && std::fabs(lam[i]) < 1e-9) {
+            if (i != o && lam[i] == 0) {
               int64_t e[2], m = 0;
               for (int l = 0; l < 4; ++l)
                 if (l != o && l != i) e[m++] = cell[l];
@@ -242,17 +317,6 @@ Row curve_and_check(const occt::LinearMesh &lm, int p) {
     }
   }
   CHECK(unclassified_facets == 0, "%zu boundary faces not classified", unclassified_facets);
-
-  auto t0 = std::chrono::steady_clock::now();
-  mesh.run_increments(1);
-  double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  CHECK(proj.calls > 0, "the projector was never called");
-  const HocQuality q = mesh.quality();
-  CHECK(q.n_invalid == 0, "p = %d: %zu invalid cells (min Q3 %g)", p, q.n_invalid, q.min_q3);
-  const std::vector<double> x = mesh.nodes();
-  for (auto &vt : vertex_tags)
-    for (int k = 0; k < dim; ++k)
-      CHECK(x[dim * vt.first + k] == x0[dim * vt.first + k], "boundary vertex %lld moved", (long long)vt.first);
 
   // Nodes on CAD curves (3D feature edges), then on CAD faces (2D: boundary curves).
   double node_dist = 0;
@@ -343,31 +407,15 @@ Row curve_and_check(const occt::LinearMesh &lm, int p) {
     }
 
   // The curved facets between the nodes: interpolate each facet's nodes (their
-  // reference coordinates from the straight facet) and sample on a lattice of order 2p + 1.
+  // reference coordinates from lam_ref) and sample on a lattice of order 2p + 1.
   double sample_dist = 0;
   std::map<int, std::vector<double>> samples;
-  const bool tri = dim == 3;
   for (const Facet &f : facets) {
     const int n = (int)f.nodes.size();
     std::vector<double> vdm, rhs;
-    for (int64_t node : f.nodes) {
-      // Reference coordinates: (s, t) of the node in the straight facet.
-      const double *a = &x0[dim * f.v[0]], *b = &x0[dim * f.v[1]], *xn = &x0[dim * node];
-      double s, t = 0;
-      if (!tri) {
-        double l2 = 0, dot = 0;
-        for (int k = 0; k < dim; ++k) l2 += (b[k] - a[k]) * (b[k] - a[k]), dot += (xn[k] - a[k]) * (b[k] - a[k]);
-        s = dot / l2;
-      } else {
-        const double *c = &x0[3 * f.v[2]];
-        double u[3], w[3], r[3];
-        for (int k = 0; k < 3; ++k) u[k] = b[k] - a[k], w[k] = c[k] - a[k], r[k] = xn[k] - a[k];
-        double uu = 0, uw = 0, ww = 0, ru = 0, rw = 0;
-        for (int k = 0; k < 3; ++k) uu += u[k] * u[k], uw += u[k] * w[k], ww += w[k] * w[k], ru += r[k] * u[k], rw += r[k] * w[k];
-        double det = uu * ww - uw * uw;
-        s = (ru * ww - rw * uw) / det;
-        t = (rw * uu - ru * uw) / det;
-      }
+    for (int i = 0; i < n; ++i) {
+      const int64_t node = f.nodes[i];
+      const double s = f.st[i][0], t = f.st[i][1];
       std::vector<double> m = monomials(p, tri, s, t);
       CHECK((int)m.size() == n, "facet has %d nodes, expected %zu", n, m.size());
       vdm.insert(vdm.end(), m.begin(), m.end());

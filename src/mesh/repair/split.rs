@@ -183,7 +183,8 @@ pub fn split_edges(mesh: &LinearMesh, edges: &[Edge]) -> Split {
             }
         }
     }
-    let whole = (0..from.len()).map(|i| i < mesh.n_cells() - chosen.iter().map(|(_, c)| c.len()).sum::<usize>()).collect();
+    let whole =
+        (0..from.len()).map(|i| i < mesh.n_cells() - chosen.iter().map(|(_, c)| c.len()).sum::<usize>()).collect();
     Split { mesh: out, parent: from, whole, edges: chosen.len() }
 }
 
@@ -296,14 +297,18 @@ mod tests {
         let s = split_edges(&m, &[[0, 1], [1, 2]]);
         // 1–2 shares cell 0 with 0–1, split first: it waits for a later round.
         assert_eq!((s.edges, s.mesh.n_cells(), s.mesh.n_vertices()), (1, 7, 8));
-        assert_eq!((&s.parent[..], &s.whole[..]), (&[3, 0, 0, 1, 1, 2, 2][..], &[true, false, false, false, false, false, false][..]));
+        assert_eq!(
+            (&s.parent[..], &s.whole[..]),
+            (&[3, 0, 0, 1, 1, 2, 2][..], &[true, false, false, false, false, false, false][..])
+        );
         assert_eq!(s.mesh.vertex(7), [0.0, 0.0, 0.5]);
         let volume = |m: &LinearMesh, c: &[usize]| orient(3, &c.iter().map(|&v| m.vertex(v)).collect::<Vec<_>>());
         for (i, c) in s.mesh.cells.chunks(4).enumerate() {
             assert!(volume(&s.mesh, c) > 0.0, "cell {i}");
         }
         for p in 0..3 {
-            let halves: f64 = s.mesh.cells.chunks(4).zip(&s.parent).filter(|(_, &q)| q == p).map(|(c, _)| volume(&s.mesh, c)).sum();
+            let halves: f64 =
+                s.mesh.cells.chunks(4).zip(&s.parent).filter(|(_, &q)| q == p).map(|(c, _)| volume(&s.mesh, c)).sum();
             assert!((halves - volume(&m, &m.cells[4 * p..4 * p + 4])).abs() < 1e-14);
         }
     }

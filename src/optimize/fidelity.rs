@@ -1,0 +1,329 @@
+//! How far the curved boundary lies from the geometry between its nodes:
+//! the guard that lets the polish slide boundary nodes without losing the
+//! boundary's accuracy.
+//!
+//! A node placed by the boundary placement sits where the interpolant of its
+//! facet is closest to the geometry; sliding it along its entity keeps the
+//! node on the geometry but moves the interpolant off it between the nodes.
+//! The guard samples each boundary piece of a cell (a facet on a curve or
+//! surface, and in 3D an edge on a curve) at the points of the equispaced
+//! lattice of order 2p on it, and projects them onto the piece's entity. A slide is kept only if every
+//! piece it moves stays within [`FIDELITY_FACTOR`] times its own distance
+//! before the polish, or within the largest distance of the whole boundary
+//! before the polish: the boundary's worst distance to the geometry does
+//! not grow, and falls with p as before.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::sync::Mutex;
+
+use crate::geometry::Projector;
+use crate::mesh::NodeConstraint;
+use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
+
+/// One kind of boundary piece of a cell: a facet (the face opposite a
+/// vertex) or, in 3D, an edge.
+#[derive(Debug, Clone)]
+struct Piece {
+    /// The cell's vertices on it (local indices).
+    vertices: Vec<usize>,
+    /// Its other nodes (local indices).
+    inner: Vec<usize>,
+    /// The entity dimension it lies on when on the boundary.
+    edim: usize,
+    /// The cell's basis at its sample points, `npc` values per point.
+    values: Vec<f64>,
+}
+
+/// The boundary pieces of the reference cell of one order, with their sample points.
+#[derive(Debug, Clone)]
+pub(super) struct Pieces {
+    dim: usize,
+    npc: usize,
+    pieces: Vec<Piece>,
+}
+
+/// A distance this small against the patch size counts as on the geometry
+/// (a planar facet's round-off).
+const ROUND_OFF: f64 = 1e-9;
+
+/// How much farther than before the polish the boundary between the nodes
+/// may lie from the geometry: a fixed factor keeps the order of convergence.
+pub(super) const FIDELITY_FACTOR: f64 = 2.0;
+
+impl Pieces {
+    pub(super) fn new(basis: &LagrangeBasis) -> Pieces {
+        let (simplex, p) = (basis.simplex(), basis.order());
+        let (dim, nv) = (simplex.dim(), simplex.n_vertices());
+        let nodes = basis.nodes();
+        let lattice = NodeSet::new(simplex, 2 * p, NodeSpacing::Equispaced);
+        let mut kinds: Vec<(Vec<usize>, usize)> = (0..nv).map(|o| ((0..nv).filter(|&v| v != o).collect(), dim - 1)).collect();
+        if dim == 3 {
+            for i in 0..nv {
+                for j in i + 1..nv {
+                    kinds.push((vec![i, j], 1));
+                }
+            }
+        }
+        let pieces = kinds
+            .into_iter()
+            .map(|(vertices, edim)| {
+                let on = |m: &[usize; 4]| (0..nv).all(|v| vertices.contains(&v) || m[v] == 0);
+                let inner = (0..nodes.len())
+                    .filter(|&a| on(&nodes.multi[a]) && nodes.multi[a][..nv].iter().filter(|&&k| k > 0).count() > 1)
+                    .collect();
+                // Lattice points on the piece but its vertices (the nodes
+                // are not lattice points unless equispaced).
+                let points: Vec<[f64; 3]> = (0..lattice.len())
+                    .filter(|&i| on(&lattice.multi[i]) && !lattice.multi[i][..nv].contains(&(2 * p)))
+                    .map(|i| lattice.coords[i])
+                    .collect();
+                let values = basis.tabulate(&points).values;
+                Piece { vertices, inner, edim, values }
+            })
+            .collect();
+        Pieces { dim, npc: nodes.len(), pieces }
+    }
+
+    /// The largest distance from the geometry of the boundary of the mesh
+    /// with `cells` (`npc` nodes each) at `coords`, sampled between the
+    /// nodes; None if the projector fails.
+    pub(super) fn largest_distance(
+        &self,
+        projector: &Mutex<&dyn Projector>,
+        cells: &[usize],
+        constraint: &[NodeConstraint],
+        coords: &[f64],
+    ) -> Option<f64> {
+        let (dim, npc) = (self.dim, self.npc);
+        let mut seen = BTreeSet::new();
+        let mut points: BTreeMap<(usize, i32), Vec<[f64; 3]>> = BTreeMap::new();
+        let mut xe = vec![0.0; npc * dim];
+        for cell in cells.chunks_exact(npc) {
+            for piece in &self.pieces {
+                let Some(entity) = entity(piece, cell, constraint) else { continue };
+                if !seen.insert(key(piece, cell)) {
+                    continue;
+                }
+                for (a, &n) in cell.iter().enumerate() {
+                    xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
+                }
+                points.entry(entity).or_default().extend(self.points(piece, &xe));
+            }
+        }
+        let mut worst: f64 = 0.0;
+        for (entity, pts) in points {
+            worst = worst.max(farthest(projector, entity, &pts)?);
+        }
+        Some(worst)
+    }
+
+    /// Whether the polish's new positions keep the boundary of `cells` as
+    /// close to the geometry as [`FIDELITY_FACTOR`] allows, or no farther
+    /// than `level`, the largest distance of the whole boundary before the
+    /// polish: every boundary piece holding a node of `moved` is sampled
+    /// with the nodes at `after` and at `before` (element coordinates of each
+    /// cell, `npc × dim`). `size` is the patch's length scale. False also if
+    /// the projector fails.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn faithful(
+        &self,
+        projector: &Mutex<&dyn Projector>,
+        cells: &[&[usize]],
+        constraint: &[NodeConstraint],
+        moved: &BTreeSet<usize>,
+        after: &[Vec<f64>],
+        before: &[Vec<f64>],
+        level: f64,
+        size: f64,
+    ) -> bool {
+        let mut seen = BTreeSet::new();
+        for (k, cell) in cells.iter().enumerate() {
+            for piece in &self.pieces {
+                if !piece.inner.iter().any(|&a| moved.contains(&cell[a])) {
+                    continue;
+                }
+                if !seen.insert(key(piece, cell)) {
+                    continue;
+                }
+                let Some(entity) = entity(piece, cell, constraint) else { continue };
+                let (Some(now), Some(was)) = (
+                    self.distance(projector, piece, entity, &after[k]),
+                    self.distance(projector, piece, entity, &before[k]),
+                ) else {
+                    return false;
+                };
+                if now > (FIDELITY_FACTOR * was).max(level) + ROUND_OFF * size {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
+    /// The largest distance from `entity` of `piece`'s sample points on the
+    /// element with node coordinates `xe`; None if the projector fails.
+    fn distance(&self, projector: &Mutex<&dyn Projector>, piece: &Piece, entity: (usize, i32), xe: &[f64]) -> Option<f64> {
+        farthest(projector, entity, &self.points(piece, xe))
+    }
+
+    /// The sample points of `piece` on the element with node coordinates `xe`.
+    fn points(&self, piece: &Piece, xe: &[f64]) -> Vec<[f64; 3]> {
+        let (dim, npc) = (self.dim, self.npc);
+        piece
+            .values
+            .chunks_exact(npc)
+            .map(|n| {
+                let mut x = [0.0; 3];
+                for (a, &w) in n.iter().enumerate() {
+                    for d in 0..dim {
+                        x[d] += w * xe[a * dim + d];
+                    }
+                }
+                x
+            })
+            .collect()
+    }
+}
+
+/// The largest distance of `points` from `entity`; None if the projector fails.
+fn farthest(projector: &Mutex<&dyn Projector>, entity: (usize, i32), points: &[[f64; 3]]) -> Option<f64> {
+    let mut out = vec![[f64::NAN; 3]; points.len()];
+    projector.lock().ok()?.project(entity.0, entity.1, points, &mut out).ok()?;
+    let mut worst: f64 = 0.0;
+    for (x, y) in points.iter().zip(&out) {
+        let d = (0..3).map(|i| (x[i] - y[i]).powi(2)).sum::<f64>().sqrt();
+        if !d.is_finite() {
+            return None;
+        }
+        worst = worst.max(d);
+    }
+    Some(worst)
+}
+
+/// The piece's vertices in the mesh, sorted: the same piece of two cells has the same key.
+fn key(piece: &Piece, cell: &[usize]) -> Vec<usize> {
+    let mut key: Vec<usize> = piece.vertices.iter().map(|&a| cell[a]).collect();
+    key.sort_unstable();
+    key
+}
+
+/// The entity `piece` of the cell with nodes `cell` lies on: that of its
+/// inner nodes when they all lie on one entity of the piece's dimension;
+/// None for a piece inside the domain or across entities.
+fn entity(piece: &Piece, cell: &[usize], constraint: &[NodeConstraint]) -> Option<(usize, i32)> {
+    let mut on = None;
+    for &a in &piece.inner {
+        match constraint[cell[a]] {
+            NodeConstraint::OnEntity { dim, tag } if dim == piece.edim => match on {
+                None => on = Some((dim, tag)),
+                Some(e) if e != (dim, tag) => return None,
+                _ => {}
+            },
+            // Lower-dimensional entities (curves on a facet's edge) are
+            // sampled as their own pieces.
+            NodeConstraint::OnEntity { dim, .. } if dim < piece.edim => {}
+            _ => return None,
+        }
+    }
+    on
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::reference::Simplex;
+
+    /// The projector onto the unit circle (entity (1, 1)) or sphere ((2, 1)).
+    struct Round;
+    impl Projector for Round {
+        fn project(&self, _: usize, _: i32, points: &[[f64; 3]], out: &mut [[f64; 3]]) -> Result<(), String> {
+            for (x, y) in points.iter().zip(out.iter_mut()) {
+                let r = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
+                *y = [x[0] / r, x[1] / r, x[2] / r];
+            }
+            Ok(())
+        }
+    }
+
+    /// A triangle of order p with its edge opposite vertex 0 on the unit
+    /// circle between angles 0 and θ: its nodes placed at the angles of the
+    /// node set (`slide` adds to the first inner node's angle).
+    fn arc_triangle(p: usize, theta: f64, slide: f64) -> (Vec<f64>, Vec<NodeConstraint>, LagrangeBasis) {
+        let basis = LagrangeBasis::new(&NodeSet::new(Simplex::Tri, p, NodeSpacing::Optimal));
+        let nodes = basis.nodes();
+        let (v1, v2) = ([1.0, 0.0], [theta.cos(), theta.sin()]);
+        let v0 = [0.0, 0.0];
+        let mut xe = Vec::new();
+        let mut constraint = Vec::new();
+        let mut first = true;
+        for a in 0..nodes.len() {
+            let l = nodes.barycentric(a);
+            if l[0].abs() < 1e-12 && nodes.multi[a][1] > 0 && nodes.multi[a][2] > 0 {
+                let mut angle = theta * l[2];
+                if first {
+                    angle += slide;
+                    first = false;
+                }
+                xe.extend([angle.cos(), angle.sin()]);
+                constraint.push(NodeConstraint::OnEntity { dim: 1, tag: 1 });
+            } else {
+                xe.extend((0..2).map(|d| l[0] * v0[d] + l[1] * v1[d] + l[2] * v2[d]));
+                constraint.push(if l[0].abs() < 1e-12 { NodeConstraint::Fixed } else { NodeConstraint::Free });
+            }
+        }
+        (xe, constraint, basis)
+    }
+
+    #[test]
+    fn the_distance_between_the_nodes_falls_with_the_order_and_grows_when_a_node_slides() {
+        let projector: &dyn Projector = &Round;
+        let projector = Mutex::new(projector);
+        let theta = 0.5;
+        let mut last = f64::INFINITY;
+        for p in 2..=5 {
+            let (xe, constraint, basis) = arc_triangle(p, theta, 0.0);
+            let pieces = Pieces::new(&basis);
+            let edge = &pieces.pieces[0];
+            assert_eq!(edge.inner.len(), p - 1);
+            let cell: Vec<usize> = (0..xe.len() / 2).collect();
+            assert_eq!(entity(edge, &cell, &constraint), Some((1, 1)));
+            // The other edges are inside the domain.
+            assert_eq!(entity(&pieces.pieces[1], &cell, &constraint), None);
+            let d = pieces.distance(&projector, edge, (1, 1), &xe).unwrap();
+            assert!(d > 0.0 && d < 0.5 * last, "p = {p}: {d:e} after {last:e}");
+            last = d;
+            // A node slid by a tenth of the arc moves the interpolant off the circle.
+            let (slid, _, _) = arc_triangle(p, theta, 0.1 * theta / p as f64);
+            let now = pieces.distance(&projector, edge, (1, 1), &slid).unwrap();
+            assert!(now > FIDELITY_FACTOR * d, "p = {p}: slid {now:e}, placed {d:e}");
+            let moved: BTreeSet<usize> = edge.inner.iter().copied().collect();
+            let cells = [cell.as_slice()];
+            let faithful = |after: &[f64], level: f64| {
+                pieces.faithful(&projector, &cells, &constraint, &moved, &[after.to_vec()], std::slice::from_ref(&xe), level, 1.0)
+            };
+            assert!(faithful(&xe, 0.0));
+            assert!(!faithful(&slid, 0.0));
+            // Allowed as far as the boundary's largest distance before.
+            assert!(faithful(&slid, now));
+            let level = pieces.largest_distance(&projector, &cell, &constraint, &xe).unwrap();
+            assert!((level - d).abs() <= 1e-15, "p = {p}: largest {level:e}, the edge's {d:e}");
+        }
+    }
+
+    #[test]
+    fn a_tetrahedron_has_four_facets_and_six_edges_sampled_between_their_nodes() {
+        let p = 3;
+        let basis = LagrangeBasis::new(&NodeSet::new(Simplex::Tet, p, NodeSpacing::Optimal));
+        let pieces = Pieces::new(&basis);
+        assert_eq!(pieces.pieces.len(), 10);
+        for piece in &pieces.pieces[..4] {
+            // Facet: 3 (p - 1) edge nodes and (p - 1)(p - 2)/2 face nodes;
+            // lattice 2p on a triangle but its vertices.
+            assert_eq!((piece.edim, piece.inner.len()), (2, 3 * (p - 1) + (p - 1) * (p - 2) / 2));
+            assert_eq!(piece.values.len() / pieces.npc, (2 * p + 1) * (2 * p + 2) / 2 - 3);
+        }
+        for piece in &pieces.pieces[4..] {
+            assert_eq!((piece.edim, piece.inner.len(), piece.values.len() / pieces.npc), (1, p - 1, 2 * p - 1));
+        }
+    }
+}
