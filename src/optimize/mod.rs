@@ -17,8 +17,9 @@
 //! the invalid cells until two rounds in a row fix nothing. Last, once every
 //! cell is valid, a polish: small patches around the (at most 16) cells
 //! nearest the smallest Q3, each kept only if it raises its patch's smallest
-//! Q3, while that raises the mesh's by 1 % or more (the energy is an average
-//! and does not aim at the floor by itself). Its boundary nodes slide at any
+//! Q3, while that raises the mesh's by 1 % or more; the energy, an average,
+//! counts the cells near the smallest Q3 [`POLISH_FOCUS`] times so that it
+//! aims at the floor. Its boundary nodes slide at any
 //! quality, but a slide is kept only if the boundary between the nodes stays
 //! close to the geometry ([`fidelity`]): sliding moves nodes off their
 //! interpolation points, and unguarded, the boundary's distance to the CAD
@@ -151,6 +152,9 @@ struct Pass<'r> {
     rule: &'r SampleRule,
     slide_below: f64,
     baseline: Option<&'r Baseline>,
+    /// The energy of the cells whose Q3 is below `focus.0` counts
+    /// `focus.1` times (outside the polish: every cell alike).
+    focus: (f64, f64),
 }
 
 /// The boundary before the polish: the node coordinates, and the largest
@@ -361,8 +365,9 @@ impl<'s, 'p> Stage<'s, 'p> {
 
     /// Polish: small patches around the cells near the smallest Q3, while that rises.
     fn polish(&mut self, state: &mut MeshState) {
-        // Each patch is kept only if its own smallest Q3 rose. It lifts the
-        // floor that the energy, an average, does not aim at.
+        // Each patch is kept only if its own smallest Q3 rose, and the cells
+        // near the floor weigh more in its energy: both aim at the floor,
+        // which the energy, an average, does not by itself.
         // Boundary nodes slide at any quality here, as far as the boundary
         // between them stays close to the geometry (see [`fidelity`]).
         let ctx = self.ctx;
@@ -379,9 +384,10 @@ impl<'s, 'p> Stage<'s, 'p> {
             let seeds = polish_seeds(state.cell_quality, floor);
             // The coarse rule: the polish's patches are valid, and a pass is
             // kept only if the measured Q3 rose (as good, a third of the time).
+            let focus = (POLISH_FACTOR * floor, POLISH_FOCUS);
             let pass = match &baseline {
-                Some(b) => Pass { slide_below: f64::INFINITY, baseline: Some(b), ..self.pass(FIRST_LAYERS[0], &ctx.coarse) },
-                None => self.pass(FIRST_LAYERS[0], &ctx.coarse),
+                Some(b) => Pass { slide_below: f64::INFINITY, baseline: Some(b), focus, ..self.pass(FIRST_LAYERS[0], &ctx.coarse) },
+                None => Pass { focus, ..self.pass(FIRST_LAYERS[0], &ctx.coarse) },
             };
             self.run_round(state, &seeds, pass);
             let now = min_q3(state.cell_quality);
@@ -393,7 +399,7 @@ impl<'s, 'p> Stage<'s, 'p> {
 
     /// A pass of `layers` layers sampled by `rule`, sliding below the threshold.
     fn pass<'r>(&self, layers: usize, rule: &'r SampleRule) -> Pass<'r> {
-        Pass { layers, rule, slide_below: self.threshold, baseline: None }
+        Pass { layers, rule, slide_below: self.threshold, baseline: None, focus: (0.0, 1.0) }
     }
 
     /// One round: the patches around `seeds` optimised in parallel, the improved ones kept.
@@ -527,14 +533,14 @@ impl<'a> PatchContext<'a> {
         &self,
         view: &MeshView,
         patch: &Patch,
-        Pass { rule, slide_below, baseline, .. }: Pass,
+        Pass { rule, slide_below, baseline, focus, .. }: Pass,
         projector: Option<&Mutex<&dyn Projector>>,
     ) -> Option<Vec<f64>> {
         if patch.free.is_empty() && patch.sliding.is_empty() {
             return None;
         }
         let dim = self.dim;
-        let work = PatchWork::new(self, view, patch, rule)?;
+        let work = PatchWork::new(self, view, patch, rule, focus)?;
         let node = |n: usize| point(&view.coords[n * dim..(n + 1) * dim]);
         let start: Vec<[f64; 3]> = patch.free.iter().chain(&patch.sliding).map(|&n| node(n)).collect();
         let before = view.score(&patch.cells);
@@ -577,11 +583,19 @@ struct PatchWork<'w> {
     scale: Vec<f64>,
     /// The median cell's mean edge.
     h: f64,
+    /// Per patch cell, the weight of its energy.
+    weights: Vec<f64>,
 }
 
 impl<'w> PatchWork<'w> {
     /// The patch sampled by `rule`; None if a straight element cannot be.
-    fn new(ctx: &'w PatchContext<'w>, view: &'w MeshView<'w>, patch: &'w Patch, rule: &'w SampleRule) -> Option<Self> {
+    fn new(
+        ctx: &'w PatchContext<'w>,
+        view: &'w MeshView<'w>,
+        patch: &'w Patch,
+        rule: &'w SampleRule,
+        (focus_below, focus): (f64, f64),
+    ) -> Option<Self> {
         let (dim, npc) = (ctx.dim, view.npc);
         let mut elements: Vec<ElementSamples> = Vec::with_capacity(patch.cells.len());
         let mut sizes = Vec::with_capacity(patch.cells.len());
@@ -608,7 +622,8 @@ impl<'w> PatchWork<'w> {
         }
         sizes.sort_by(f64::total_cmp);
         let h = sizes[sizes.len() / 2];
-        Some(PatchWork { ctx, view, patch, rule, elements, local, scale, h })
+        let weights = patch.cells.iter().map(|&c| if view.cell_quality[c].q3 < focus_below { focus } else { 1.0 }).collect();
+        Some(PatchWork { ctx, view, patch, rule, elements, local, scale, h, weights })
     }
 
     /// The patch's energy, its sliding nodes projected through `projector` if given.
@@ -622,6 +637,7 @@ impl<'w> PatchWork<'w> {
             coords: self.view.coords,
             cells: self.patch.cells.as_slice(),
             all_cells: self.view.cells,
+            weights: &self.weights,
             projector,
         }
     }
@@ -739,6 +755,12 @@ const POLISH_FACTOR: f64 = 1.2;
 const POLISH_SEEDS: usize = 16;
 /// Polishing stops after a round that raised the smallest Q3 by less than this fraction.
 const POLISH_GAIN: f64 = 0.01;
+/// In the polish, the energy of a cell whose Q3 is below [`POLISH_FACTOR`]
+/// times the smallest counts this many times: the energy, an average, then
+/// aims at the worst cells. On five STEP parts at p = 2 and 3 it raised
+/// the smallest Q3 of nine runs of ten (by up to 0.15) against weight 1,
+/// and lowered the tenth by 0.001; weight 10 lowered one by 0.12.
+const POLISH_FOCUS: f64 = 5.0;
 
 /// Passes of the sliding phase (optimise, project back, measure).
 const SLIDING_PASSES: usize = 3;
@@ -788,6 +810,8 @@ struct PatchProblem<'a, 'p> {
     coords: &'a [f64],
     cells: &'a [usize],
     all_cells: &'a [usize],
+    /// Per patch cell, the weight of its energy.
+    weights: &'a [f64],
     /// Projects the sliding nodes onto their entity (module docs of
     /// [`Unknown`]): every energy is evaluated on the entities, so a step
     /// the line search accepts is valid where the nodes really are.
@@ -847,13 +871,14 @@ impl PatchProblem<'_, '_> {
             let (cell, loc) = self.cell(k);
             gather_moved(cell, loc, self.coords, &work.trial, dim, &mut work.xe);
             work.ge.iter_mut().for_each(|v| *v = 0.0);
-            total += self.rule.energy_grad(&self.elements[k], &work.xe, delta, &mut work.ge)?;
+            let w = self.weights[k];
+            total += w * self.rule.energy_grad(&self.elements[k], &work.xe, delta, &mut work.ge)?;
             for (a, &j) in loc.iter().enumerate() {
                 if j == usize::MAX {
                     continue;
                 }
                 for (m, tm) in vars.unknowns[j].tangents.iter().enumerate() {
-                    g[vars.offsets[j] + m] += (0..dim).map(|d| tm[d] * work.ge[a * dim + d]).sum::<f64>();
+                    g[vars.offsets[j] + m] += w * (0..dim).map(|d| tm[d] * work.ge[a * dim + d]).sum::<f64>();
                 }
             }
         }
@@ -1104,6 +1129,97 @@ mod tests {
                 let fd = (rule.energy(&e, &xp, delta).unwrap() - rule.energy(&e, &xm, delta).unwrap()) / (2.0 * h);
                 assert!((fd - g[k]).abs() < 1e-6 * (1.0 + fd.abs()), "{simplex:?} p={p} dof {k}: {fd} vs {}", g[k]);
             }
+        }
+    }
+
+    /// An annulus at p = 3 whose interior high-order nodes are jittered
+    /// (every cell stays valid), its straight positions, and its basis.
+    fn jittered_annulus() -> (HighOrderMesh, Vec<f64>, LagrangeBasis) {
+        let case = crate::cases::annulus_2d(0.5, 1.0, 16, 3);
+        let (linear, _) = crate::mesh::validate_and_orient(&case.mesh).unwrap();
+        let topo = crate::mesh::Topology::new(&linear).unwrap();
+        let nodes = NodeSet::new(topo.simplex, 3, NodeSpacing::Optimal);
+        let mut mesh = HighOrderMesh::elevate(&linear, &topo, &nodes, NodeSpacing::Optimal).unwrap();
+        let straight = mesh.coords.clone();
+        let mut seed = 7u64;
+        for n in mesh.n_vertices..mesh.n_nodes() {
+            if mesh.constraint[n] == NodeConstraint::Free {
+                for d in 0..2 {
+                    seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                    mesh.coords[2 * n + d] += 0.01 * ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5);
+                }
+            }
+        }
+        (mesh, straight, LagrangeBasis::new(&nodes))
+    }
+
+    #[test]
+    fn a_patch_energy_weighs_its_focused_cells_and_its_gradient_matches_finite_differences() {
+        let (mesh, straight, basis) = jittered_annulus();
+        let (dim, npc) = (2, mesh.nodes_per_cell());
+        let sampling = quality::sampling_cache(&basis);
+        let ctx = PatchContext::new(&basis, &sampling);
+        let (q, cert): (Vec<_>, Vec<_>) = (0..mesh.n_cells())
+            .map(|c| ctx.cell_state(&mesh.coords, mesh.cell(c), &straight))
+            .map(|s| (s.q, s.cert))
+            .unzip();
+        let view = MeshView {
+            coords: &mesh.coords,
+            cells: &mesh.cells,
+            npc,
+            constraint: &mesh.constraint,
+            straight: &straight,
+            cell_quality: &q,
+            certified: &cert,
+        };
+        let worst = (0..mesh.n_cells()).min_by(|&a, &b| q[a].q3.total_cmp(&q[b].q3)).unwrap();
+        let patch = build_patches(&mesh, &NodeCells::new(&mesh), &[worst], 1).remove(0);
+        let mut q3: Vec<f64> = patch.cells.iter().map(|&c| q[c].q3).collect();
+        q3.sort_by(f64::total_cmp);
+        let (below, focus) = (q3[q3.len() / 2], 5.0);
+        let work = PatchWork::new(&ctx, &view, &patch, &ctx.coarse, (below, focus)).unwrap();
+        assert!(work.weights.contains(&focus) && work.weights.contains(&1.0), "{:?}", work.weights);
+        let node = |n: usize| point(&mesh.coords[n * dim..(n + 1) * dim]);
+        // The boundary nodes held (no projector).
+        let unknowns: Vec<Unknown> = patch
+            .free
+            .iter()
+            .map(|&n| Unknown::free(node(n), dim))
+            .chain(patch.sliding.iter().map(|&n| Unknown::fixed(node(n))))
+            .collect();
+        let vars = Variables::new(unknowns);
+        let problem = work.problem(None);
+        let nm = patch.free.len() + patch.sliding.len();
+        let mut scratch = Scratch { xe: vec![0.0; npc * dim], ge: vec![0.0; npc * dim], trial: vec![[0.0; 3]; nm] };
+        let t: Vec<f64> = (0..vars.n_vars).map(|k| 1e-3 * (k as f64).sin()).collect();
+        let mut g = vec![0.0; vars.n_vars];
+        let e = problem.energy_grad(&vars, &t, &mut g, 0.0, &mut scratch).unwrap();
+        // The same sum, cell by cell: each cell's energy at the moved nodes times its weight.
+        let mut coords = mesh.coords.clone();
+        for (j, &n) in patch.free.iter().enumerate() {
+            for d in 0..dim {
+                coords[n * dim + d] += t[j * dim + d];
+            }
+        }
+        let by_cell: f64 = patch
+            .cells
+            .iter()
+            .enumerate()
+            .map(|(k, &c)| {
+                let w = if q[c].q3 < below { focus } else { 1.0 };
+                w * ctx.coarse.energy(&work.elements[k], &gather(&coords, mesh.cell(c), dim), 0.0).unwrap()
+            })
+            .sum();
+        assert!((e - by_cell).abs() < 1e-12 * by_cell, "{e} against {by_cell}");
+        let h = 1e-7;
+        for k in (0..vars.n_vars).step_by(5) {
+            let mut at = |v: f64| {
+                let mut tk = t.clone();
+                tk[k] += v;
+                problem.energy_grad(&vars, &tk, &mut vec![0.0; vars.n_vars], 0.0, &mut scratch).unwrap()
+            };
+            let fd = (at(h) - at(-h)) / (2.0 * h);
+            assert!((fd - g[k]).abs() < 1e-5 * (1.0 + fd.abs()), "variable {k}: {fd} against {}", g[k]);
         }
     }
 
