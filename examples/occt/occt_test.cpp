@@ -128,7 +128,9 @@ struct Facet {
   std::vector<std::array<double, 2>> st;  // each node's (s, t): its barycentric coordinates of v[1], v[2]
 };
 
-Row curve_and_check(const occt::LinearMesh &lm, int p) {
+// Curve `lm` at order p (`optimize` false: without the optimisation stage)
+// and check its boundary against the CAD.
+Row curve_and_check(const occt::LinearMesh &lm, int p, bool optimize = true) {
   const int dim = lm.dim, nv = dim + 1;
   const double tol = 1e-8 * lm.size;
   occt::Projector proj;
@@ -136,6 +138,7 @@ Row curve_and_check(const occt::LinearMesh &lm, int p) {
   hocurve::Mesh mesh = occt::make_mesh(lm, proj);
   mesh.set_threads(2);
   mesh.set_order(p);
+  mesh.set_optimize(optimize);
   // The straight mesh before the run. Its repair may flip, remove and split
   // cells (new vertices appended, the input ones kept, boundary facets
   // unchanged), which renumbers the high-order nodes: the boundary is
@@ -467,19 +470,35 @@ int check(const std::string &model, double h, int pmin, int pmax, int per_2pi, d
   std::printf("%3s %7s %8s %8s %8s %12s %10s %12s %14s %7s %8s %8s %9s %9s %8s\n", "p", "cells", "nodes", "checked",
               "planar", "node->CAD", "edge nodes", "edge->faces", "between->CAD", "drop", "min Q3", "invalid",
               "fallbacks", "projected", "seconds");
-  std::vector<Row> rows;
-  for (int p = pmin; p <= pmax; ++p) {
-    Row r = curve_and_check(lm, p);
+  // Each order is curved twice: with the defaults, and without the
+  // optimisation stage, whose boundary is the placement's alone. The
+  // convergence with p is the placement's; the polish may slide boundary
+  // nodes, each boundary piece as far as twice its distance before or the
+  // boundary's largest before, so the largest may at most double.
+  auto print = [](const Row &r, const Row *last) {
     char drop[16] = "-";
-    if (!rows.empty()) std::snprintf(drop, sizeof drop, "%.1f", rows.back().sample_dist / r.sample_dist);
+    if (last) std::snprintf(drop, sizeof drop, "%.1f", last->sample_dist / r.sample_dist);
     char ef[16] = "-";
     if (r.edge_face_dist >= 0) std::snprintf(ef, sizeof ef, "%.3e", r.edge_face_dist);
     std::printf("%3d %7zu %8zu %8zu %8zu %12.3e %10zu %12s %14.3e %7s %8.4f %8zu %9zu %9zu %8.2f\n", r.p, r.cells,
                 r.nodes, r.checked, r.planar, r.node_dist, r.edge_nodes, ef, r.sample_dist, drop, r.min_q3, r.invalid,
                 r.fallbacks, r.projected, r.secs);
     std::fflush(stdout);
-    rows.push_back(r);
+  };
+  std::vector<Row> rows, placed;
+  for (int p = pmin; p <= pmax; ++p) {
+    rows.push_back(curve_and_check(lm, p));
+    print(rows.back(), rows.size() > 1 ? &rows[rows.size() - 2] : nullptr);
   }
+  std::printf("without the optimisation stage:\n");
+  for (int p = pmin; p <= pmax; ++p) {
+    placed.push_back(curve_and_check(lm, p, false));
+    print(placed.back(), placed.size() > 1 ? &placed[placed.size() - 2] : nullptr);
+  }
+  for (std::size_t i = 0; i < rows.size(); ++i)
+    CHECK(rows[i].sample_dist <= 2 * placed[i].sample_dist * (1 + 1e-6) + 1e-12 * lm.size,
+          "p = %d: the optimisation moved the boundary from %.3g to %.3g from the CAD", rows[i].p,
+          placed[i].sample_dist, rows[i].sample_dist);
   // Convergence with p on the fixed mesh. On a circular arc the
   // distance falls in pairs of orders (rate h^(p+2) at even p, h^(p+1) at odd
   // p; see examples/occt/README.md), so only a fall at every order and a large overall one are asked.
@@ -487,13 +506,14 @@ int check(const std::string &model, double h, int pmin, int pmax, int per_2pi, d
     // Every node placed through the parametrisation (a fallback to closest
     // point hid a bad getClosestPoint answer on the torus; README).
     for (const Row &r : rows) CHECK(r.fallbacks == 0, "p = %d: %zu placement fallbacks", r.p, r.fallbacks);
-    for (std::size_t i = 1; i < rows.size(); ++i)
-      CHECK(rows[i].sample_dist < rows[i - 1].sample_dist, "between->CAD did not fall from p = %d (%.3g) to p = %d (%.3g)",
-            rows[i - 1].p, rows[i - 1].sample_dist, rows[i].p, rows[i].sample_dist);
+    for (std::size_t i = 1; i < placed.size(); ++i)
+      CHECK(placed[i].sample_dist < placed[i - 1].sample_dist,
+            "between->CAD did not fall from p = %d (%.3g) to p = %d (%.3g)", placed[i - 1].p,
+            placed[i - 1].sample_dist, placed[i].p, placed[i].sample_dist);
     if (pmax >= pmin + 3)
-      CHECK(rows.back().sample_dist * fall <= rows.front().sample_dist,
-            "between->CAD fell only from %.3g (p = %d) to %.3g (p = %d), less than %g times", rows.front().sample_dist,
-            pmin, rows.back().sample_dist, pmax, fall);
+      CHECK(placed.back().sample_dist * fall <= placed.front().sample_dist,
+            "between->CAD fell only from %.3g (p = %d) to %.3g (p = %d), less than %g times",
+            placed.front().sample_dist, pmin, placed.back().sample_dist, pmax, fall);
   }
   return 0;
 }
