@@ -44,6 +44,14 @@ pub(super) struct Pieces {
     pieces: Vec<Piece>,
 }
 
+/// The boundary's distance from the geometry between its nodes: per piece
+/// (by its sorted vertices) and the largest.
+#[derive(Debug, Clone)]
+pub(super) struct Distances {
+    by_piece: BTreeMap<Vec<usize>, f64>,
+    pub(super) level: f64,
+}
+
 /// A distance this small against the patch size counts as on the geometry
 /// (a planar facet's round-off).
 const ROUND_OFF: f64 = 1e-9;
@@ -86,44 +94,58 @@ impl Pieces {
         Pieces { dim, npc: nodes.len(), pieces }
     }
 
-    /// The largest distance from the geometry of the boundary of the mesh
+    /// The distance from the geometry of every boundary piece of the mesh
     /// with `cells` (`npc` nodes each) at `coords`, sampled between the
-    /// nodes; None if the projector fails.
-    pub(super) fn largest_distance(
+    /// nodes; None if the projector fails. The points of each entity go to
+    /// the projector in one call.
+    pub(super) fn distances(
         &self,
         projector: &Mutex<&dyn Projector>,
         cells: &[usize],
         constraint: &[NodeConstraint],
         coords: &[f64],
-    ) -> Option<f64> {
+    ) -> Option<Distances> {
         let (dim, npc) = (self.dim, self.npc);
         let mut seen = BTreeSet::new();
-        let mut points: BTreeMap<(usize, i32), Vec<[f64; 3]>> = BTreeMap::new();
+        // Per entity: its sample points, and each piece's key with the end of its points.
+        type Batch = (Vec<[f64; 3]>, Vec<(Vec<usize>, usize)>);
+        let mut points: BTreeMap<(usize, i32), Batch> = BTreeMap::new();
         let mut xe = vec![0.0; npc * dim];
         for cell in cells.chunks_exact(npc) {
             for piece in &self.pieces {
                 let Some(entity) = entity(piece, cell, constraint) else { continue };
-                if !seen.insert(key(piece, cell)) {
+                let k = key(piece, cell);
+                if seen.contains(&k) {
                     continue;
                 }
+                seen.insert(k.clone());
                 for (a, &n) in cell.iter().enumerate() {
                     xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
                 }
-                points.entry(entity).or_default().extend(self.points(piece, &xe));
+                let (pts, ends) = points.entry(entity).or_default();
+                pts.extend(self.points(piece, &xe));
+                ends.push((k, pts.len()));
             }
         }
-        let mut worst: f64 = 0.0;
-        for (entity, pts) in points {
-            worst = worst.max(farthest(projector, entity, &pts)?);
+        let mut out = Distances { by_piece: BTreeMap::new(), level: 0.0 };
+        for (entity, (pts, ends)) in points {
+            let d = distances(projector, entity, &pts)?;
+            let mut start = 0;
+            for (k, end) in ends {
+                let worst = d[start..end].iter().fold(0.0, |w: f64, &x| w.max(x));
+                out.level = out.level.max(worst);
+                out.by_piece.insert(k, worst);
+                start = end;
+            }
         }
-        Some(worst)
+        Some(out)
     }
 
     /// Whether the polish's new positions keep the boundary of `cells`
-    /// within [`FIDELITY_FACTOR`] times its distance from the geometry
-    /// before the polish, or within `level`, the largest distance of the
-    /// whole boundary before the polish, whichever is larger: every boundary piece holding a node of `moved` is sampled
-    /// with the nodes at `after` and at `before` (element coordinates of each
+    /// within [`FIDELITY_FACTOR`] times each piece's distance from the
+    /// geometry `before` the polish, or within the largest of them,
+    /// whichever is larger: every boundary piece holding a node of `moved`
+    /// is sampled with the nodes at `after` (element coordinates of each
     /// cell, `npc × dim`). `size` is the patch's length scale. False also if
     /// the projector fails.
     #[allow(clippy::too_many_arguments)]
@@ -134,8 +156,7 @@ impl Pieces {
         constraint: &[NodeConstraint],
         moved: &BTreeSet<usize>,
         after: &[Vec<f64>],
-        before: &[Vec<f64>],
-        level: f64,
+        before: &Distances,
         size: f64,
     ) -> bool {
         let mut seen = BTreeSet::new();
@@ -144,19 +165,19 @@ impl Pieces {
                 if !piece.inner.iter().any(|&a| moved.contains(&cell[a])) {
                     continue;
                 }
-                if !seen.insert(key(piece, cell)) {
+                let pk = key(piece, cell);
+                if seen.contains(&pk) {
                     continue;
                 }
                 let Some(entity) = entity(piece, cell, constraint) else { continue };
-                let (Some(now), Some(was)) = (
-                    self.distance(projector, piece, entity, &after[k]),
-                    self.distance(projector, piece, entity, &before[k]),
-                ) else {
+                let (Some(now), Some(&was)) = (self.distance(projector, piece, entity, &after[k]), before.by_piece.get(&pk))
+                else {
                     return false;
                 };
-                if now > (FIDELITY_FACTOR * was).max(level) + ROUND_OFF * size {
+                if now > (FIDELITY_FACTOR * was).max(before.level) + ROUND_OFF * size {
                     return false;
                 }
+                seen.insert(pk);
             }
         }
         true
@@ -189,17 +210,19 @@ impl Pieces {
 
 /// The largest distance of `points` from `entity`; None if the projector fails.
 fn farthest(projector: &Mutex<&dyn Projector>, entity: (usize, i32), points: &[[f64; 3]]) -> Option<f64> {
+    Some(distances(projector, entity, points)?.into_iter().fold(0.0, f64::max))
+}
+
+/// The distance of each of `points` from `entity`; None if the projector
+/// fails or a distance is not finite.
+fn distances(projector: &Mutex<&dyn Projector>, entity: (usize, i32), points: &[[f64; 3]]) -> Option<Vec<f64>> {
     let mut out = vec![[f64::NAN; 3]; points.len()];
     projector.lock().ok()?.project(entity.0, entity.1, points, &mut out).ok()?;
-    let mut worst: f64 = 0.0;
-    for (x, y) in points.iter().zip(&out) {
-        let d = (0..3).map(|i| (x[i] - y[i]).powi(2)).sum::<f64>().sqrt();
-        if !d.is_finite() {
-            return None;
-        }
-        worst = worst.max(d);
-    }
-    Some(worst)
+    points
+        .iter()
+        .zip(&out)
+        .map(|(x, y)| Some((0..3).map(|i| (x[i] - y[i]).powi(2)).sum::<f64>().sqrt()).filter(|d| d.is_finite()))
+        .collect()
 }
 
 /// The piece's vertices in the mesh, sorted: the same piece of two cells has the same key.
@@ -300,8 +323,13 @@ mod tests {
             assert!(now > FIDELITY_FACTOR * d, "p = {p}: slid {now:e}, placed {d:e}");
             let moved: BTreeSet<usize> = edge.inner.iter().copied().collect();
             let cells = [cell.as_slice()];
+            let before = pieces.distances(&projector, &cell, &constraint, &xe).unwrap();
+            assert!((before.level - d).abs() <= 1e-15, "p = {p}: largest {:e}, the edge's {d:e}", before.level);
+            assert_eq!(before.by_piece.get(&key(edge, &cell)), Some(&d));
+            // The same, with the whole boundary's largest distance set to `level`.
             let faithful = |after: &[f64], level: f64| {
-                pieces.faithful(&projector, &cells, &constraint, &moved, &[after.to_vec()], std::slice::from_ref(&xe), level, 1.0)
+                let before = Distances { level, ..before.clone() };
+                pieces.faithful(&projector, &cells, &constraint, &moved, &[after.to_vec()], &before, 1.0)
             };
             assert!(faithful(&xe, 0.0));
             assert!(!faithful(&slid, 0.0));
@@ -318,8 +346,6 @@ mod tests {
             });
             let nudged = within.unwrap_or_else(|| panic!("p = {p}: no nudge moves the edge by less than twice {d:e}"));
             assert!(faithful(nudged, 0.0));
-            let level = pieces.largest_distance(&projector, &cell, &constraint, &xe).unwrap();
-            assert!((level - d).abs() <= 1e-15, "p = {p}: largest {level:e}, the edge's {d:e}");
         }
     }
 

@@ -157,12 +157,9 @@ struct Pass<'r> {
     focus: (f64, f64),
 }
 
-/// The boundary before the polish: the node coordinates, and the largest
-/// distance from the geometry between the nodes.
-struct Baseline {
-    coords: Vec<f64>,
-    level: f64,
-}
+/// The boundary before the polish: its distance from the geometry between
+/// the nodes.
+type Baseline = fidelity::Distances;
 
 /// Cell figures used to select and to accept.
 #[derive(Debug, Clone, Copy)]
@@ -373,8 +370,7 @@ impl<'s, 'p> Stage<'s, 'p> {
         let ctx = self.ctx;
         let baseline = self.projector.and_then(|projector| {
             let mesh = &state.mesh;
-            let level = ctx.pieces.largest_distance(projector, &mesh.cells, &mesh.constraint, &mesh.coords)?;
-            Some(Baseline { coords: mesh.coords.clone(), level })
+            ctx.pieces.distances(projector, &mesh.cells, &mesh.constraint, &mesh.coords)
         });
         for _ in 0..POLISH_ROUNDS {
             if invalid_count(state.certified) > 0 {
@@ -715,9 +711,7 @@ impl<'w> PatchWork<'w> {
             gather_moved(cell, &self.local[k * npc..(k + 1) * npc], view.coords, pos, dim, &mut xe);
             after.push(xe);
         }
-        let before: Vec<Vec<f64>> = cells.iter().map(|cell| gather(&baseline.coords, cell, dim)).collect();
-        let pieces = &self.ctx.pieces;
-        pieces.faithful(projector, &cells, view.constraint, &moved, &after, &before, baseline.level, self.h)
+        self.ctx.pieces.faithful(projector, &cells, view.constraint, &moved, &after, baseline, self.h)
     }
 
     /// The unknowns of a sliding pass from `pos`: free nodes, and sliding ones in their entity's tangent space.
