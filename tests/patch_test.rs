@@ -5,12 +5,13 @@
 mod common;
 
 use hocurve::assembly::LinearElasticKernel;
-use hocurve::curve::{solve_increments, Stepping, Timings};
+use hocurve::curve::{solve_increments, solve_increments_from, Stepping, Timings};
 use hocurve::mapping::ElementCache;
 use hocurve::material::LinearElastic;
 use hocurve::mesh::{validate_and_orient, HighOrderMesh, LinearMesh, NodeConstraint, Topology};
 use hocurve::quadrature::simplex_rule;
 use hocurve::reference::{LagrangeBasis, NodeSet, NodeSpacing};
+use hocurve::solver::SolverChoice;
 
 /// u(X) = A X + b with a general (non-symmetric) A.
 fn linear_field(x: &[f64], dim: usize) -> Vec<f64> {
@@ -19,18 +20,19 @@ fn linear_field(x: &[f64], dim: usize) -> Vec<f64> {
     (0..dim).map(|i| b[i] + (0..dim).map(|j| a[i][j] * x[j]).sum::<f64>()).collect()
 }
 
-fn run_patch(linear: &LinearMesh, order: usize, increments: usize) -> f64 {
+/// The patch problem at order `order`: the straight mesh, the linear field
+/// on its boundary nodes, and the ILE kernel.
+fn patch_problem(linear: &LinearMesh, order: usize) -> (HighOrderMesh, Vec<f64>, LinearElasticKernel) {
     let (linear, _) = validate_and_orient(linear).unwrap();
     let topo = Topology::new(&linear).unwrap();
     let nodes = NodeSet::new(topo.simplex, order, NodeSpacing::Optimal);
-    let mut mesh = HighOrderMesh::elevate(&linear, &topo, &nodes, NodeSpacing::Optimal).unwrap();
+    let mesh = HighOrderMesh::elevate(&linear, &topo, &nodes, NodeSpacing::Optimal).unwrap();
     let dim = mesh.dim();
-    let straight = mesh.coords.clone();
-    let mut ubar = vec![0.0; straight.len()];
+    let mut ubar = vec![0.0; mesh.coords.len()];
     let mut n_interior = 0;
     for n in 0..mesh.n_nodes() {
         if mesh.constraint[n] != NodeConstraint::Free {
-            let u = linear_field(&straight[n * dim..(n + 1) * dim], dim);
+            let u = linear_field(&mesh.coords[n * dim..(n + 1) * dim], dim);
             ubar[n * dim..(n + 1) * dim].copy_from_slice(&u);
         } else {
             n_interior += 1;
@@ -39,6 +41,13 @@ fn run_patch(linear: &LinearMesh, order: usize, increments: usize) -> f64 {
     assert!(n_interior > 0, "the patch must have interior nodes");
     let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(topo.simplex, 2 * order));
     let kernel = LinearElasticKernel { cache, material: LinearElastic::try_from_young_poisson(1e5, 0.3).unwrap() };
+    (mesh, ubar, kernel)
+}
+
+fn run_patch(linear: &LinearMesh, order: usize, increments: usize) -> f64 {
+    let (mut mesh, ubar, kernel) = patch_problem(linear, order);
+    let dim = mesh.dim();
+    let straight = mesh.coords.clone();
     let mut t = Timings::default();
     let stepping = Stepping::new(increments);
     solve_increments(&mut mesh, &kernel, &ubar, stepping, &mut t, &mut |_, _, _| Ok(())).unwrap();
@@ -74,5 +83,44 @@ fn linear_displacement_is_reproduced_in_3d_for_p_1_to_6() {
         let e = run_patch(&mesh, p, inc);
         println!("3D p={p} increments={inc}: max nodal error {e:.2e}");
         assert!(e < 1e-11, "3D p={p}: error {e:e}");
+    }
+}
+
+/// ILE's solve is linear in the load: a run started from the first rate of
+/// another (per unit load) scaled to its load takes no PCG iteration and
+/// moves every node by that scaled displacement, to round-off.
+#[test]
+fn a_solve_started_from_an_earlier_rate_takes_no_iteration_and_scales_its_displacement() {
+    let (mesh, ubar, kernel) = patch_problem(&common::cube_mesh(2), 3);
+    let stepping = Stepping { solver: SolverChoice::Iterative, ..Stepping::new(1) };
+    let mut t = Timings::default();
+    let mut first = mesh.clone();
+    let r = solve_increments(&mut first, &kernel, &ubar, stepping.clone(), &mut t, &mut |_, _, _| Ok(())).unwrap();
+    assert!(r.solves.iterations[0] > 0, "{:?}", r.solves.iterations);
+    let rate = r.first_rate.expect("the first increment's rate");
+    assert_eq!(rate.len(), r.n_free);
+    for scale in [0.5, 0.3] {
+        let part: Vec<f64> = ubar.iter().map(|u| scale * u).collect();
+        let start: Vec<f64> = rate.iter().map(|v| scale * v).collect();
+        let mut second = mesh.clone();
+        let s = solve_increments_from(
+            &mut second,
+            &kernel,
+            &part,
+            stepping.clone(),
+            Some(&start),
+            &mut t,
+            &mut |_, _, _| Ok(()),
+        )
+        .unwrap();
+        assert_eq!(s.solves.iterations, [0], "scale {scale}");
+        let worst = (0..mesh.coords.len())
+            .map(|i| ((second.coords[i] - mesh.coords[i]) - scale * (first.coords[i] - mesh.coords[i])).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-14, "scale {scale}: {worst:e}");
+        // From zero, the same system takes iterations.
+        let mut cold = mesh.clone();
+        let c = solve_increments(&mut cold, &kernel, &part, stepping.clone(), &mut t, &mut |_, _, _| Ok(())).unwrap();
+        assert!(c.solves.iterations[0] > 0);
     }
 }

@@ -29,9 +29,9 @@ pub use prepare::Prepared;
 pub use stepping::{ElasticStop, StepBack, StepBackReason, DEFAULT_MAX_SPLITS, MAX_SPLITS};
 // The elastic stage on its own, for the crate's tests.
 #[cfg(feature = "internals")]
-pub use stepping::{solve_increments, IncrementsReport, Predictor, Stepping};
+pub use stepping::{solve_increments, solve_increments_from, IncrementsReport, Predictor, Stepping};
 #[cfg(not(feature = "internals"))]
-use stepping::{solve_increments, IncrementsReport, Stepping};
+use stepping::{solve_increments, solve_increments_from, IncrementsReport, Stepping};
 
 /// The solid-mechanics formulation (paper Table 1).
 #[non_exhaustive]
@@ -455,11 +455,15 @@ impl Run<'_> {
         if let (Some(stop), Some(reference)) = (solved.stopped.clone(), &straight_mesh) {
             // The remaining load in one linear elastic solve on the straight
             // mesh, which is always valid: the boundary reaches its target and
-            // the optimisation stage untangles what this leaves inverted.
+            // the optimisation stage untangles what this leaves inverted. Its
+            // solve starts from the first increment's, scaled (the same
+            // matrix for ILE).
             let rest: Vec<f64> = ubar.iter().map(|u| u * (1.0 - stop.load)).collect();
+            let rate: Option<Vec<f64>> =
+                solved.first_rate.as_ref().map(|r| r.iter().map(|x| x * (1.0 - stop.load)).collect());
             let mut reference = reference.clone();
-            let finish = setup.finish_stepping.clone();
-            let finish = solve_increments(&mut reference, &setup.linear_kernel, &rest, finish, timings, tick)?;
+            let (finish, kernel) = (setup.finish_stepping.clone(), &setup.linear_kernel);
+            let finish = solve_increments_from(&mut reference, kernel, &rest, finish, rate.as_deref(), timings, tick)?;
             solved.solves.append(finish.solves);
             for ((x, r), s) in mesh.coords.iter_mut().zip(&reference.coords).zip(straight) {
                 *x += r - s;
@@ -498,7 +502,8 @@ impl Run<'_> {
             // A second start: the whole load in one linear solve on the straight
             // mesh, then the optimisation; kept if it leaves fewer invalid cells.
             let (finish, timings, tick) = (setup.finish_stepping.clone(), &mut self.timings, &mut *self.tick);
-            let full = solve_increments(&mut second, &setup.linear_kernel, ubar, finish, timings, tick)?;
+            let (kernel, rate) = (&setup.linear_kernel, solved.first_rate.as_deref());
+            let full = solve_increments_from(&mut second, kernel, ubar, finish, rate, timings, tick)?;
             solved.solves.append(full.solves);
             let other = optimiser.finish(second, None)?;
             if other.invalid() < done.invalid() {

@@ -122,6 +122,10 @@ pub struct IncrementsReport {
     /// With [`Stepping::finish`]: where adaptive stepping gave up; the mesh
     /// is left at the last accepted geometry.
     pub stopped: Option<ElasticStop>,
+    /// The solution on the free dofs of the first increment attempted from
+    /// load 0, per unit load (accepted or not): a start for another solve
+    /// from the same geometry ([`solve_increments_from`]).
+    pub first_rate: Option<Vec<f64>>,
 }
 
 impl IncrementsReport {
@@ -219,6 +223,23 @@ pub fn solve_increments<K: ElementKernel>(
     timings: &mut Timings,
     tick: &mut dyn FnMut(Stage, usize, usize) -> Result<()>,
 ) -> Result<IncrementsReport> {
+    solve_increments_from(mesh, kernel, ubar, stepping, None, timings, tick)
+}
+
+/// [`solve_increments`], with the first increment's solve started from
+/// `rate` (free dofs, per unit load; ignored if not of their length), e.g.
+/// the [`IncrementsReport::first_rate`] of an earlier run from the same
+/// geometry. The solution is the same to the solver's tolerance; a start
+/// that already meets it takes no iteration.
+pub fn solve_increments_from<K: ElementKernel>(
+    mesh: &mut HighOrderMesh,
+    kernel: &K,
+    ubar: &[f64],
+    stepping: Stepping,
+    rate: Option<&[f64]>,
+    timings: &mut Timings,
+    tick: &mut dyn FnMut(Stage, usize, usize) -> Result<()>,
+) -> Result<IncrementsReport> {
     let increments = stepping.increments;
     if increments == 0 {
         return Err(Error::InvalidInput("the number of increments must be at least 1".into()));
@@ -239,7 +260,8 @@ pub fn solve_increments<K: ElementKernel>(
         return Ok(out);
     }
     let start = mesh.coords.clone();
-    let result = step_through(mesh, kernel, ubar, &stepping, dofs, timings, tick);
+    let rate = rate.filter(|r| r.len() == dofs.n_free);
+    let result = step_through(mesh, kernel, ubar, &stepping, dofs, rate, timings, tick);
     if result.is_err() {
         mesh.coords.copy_from_slice(&start);
     }
@@ -282,12 +304,14 @@ impl From<Error> for Failure {
 
 /// The increment loop of [`solve_increments`]. The load is counted in ticks
 /// of 1/(n·2^splits), so split steps add up exactly to the nominal ones.
+#[allow(clippy::too_many_arguments)]
 fn step_through<K: ElementKernel>(
     mesh: &mut HighOrderMesh,
     kernel: &K,
     ubar: &[f64],
     stepping: &Stepping,
     dofs: DofMap,
+    rate: Option<&[f64]>,
     timings: &mut Timings,
     tick: &mut dyn FnMut(Stage, usize, usize) -> Result<()>,
 ) -> Result<IncrementsReport> {
@@ -296,6 +320,9 @@ fn step_through<K: ElementKernel>(
     let mut ctx = IncrementContext::new(mesh, kernel, stepping, dofs, timings)?;
     out.solves.solver = ctx.solver.name();
     let mut walk = Walk::new(stepping, n_free, mesh);
+    if let Some(rate) = rate {
+        walk.predictor.start_from(rate);
+    }
     let mut bufs = Buffers {
         step: vec![0.0; ubar.len()],
         u: vec![0.0; n_free],
@@ -316,6 +343,9 @@ fn step_through<K: ElementKernel>(
         walk.predictor.predict_into(inc.h, &mut bufs.u);
         let certified = walk.certify_all || walk.at + inc.len == walk.total || !out.step_backs.is_empty();
         let result = ctx.attempt(mesh, &mut bufs, certified, timings, &mut out);
+        if inc.from == 0.0 && out.first_rate.is_none() && bufs.u.iter().all(|x| x.is_finite()) {
+            out.first_rate = Some(bufs.u.iter().map(|x| x / inc.h).collect());
+        }
         walk.settle(result, &inc, certified, mesh, &bufs, &mut out)?;
     }
     Ok(out)
@@ -428,6 +458,9 @@ impl Walk {
             Err(Failure::AtStart { cell, .. }) => self.restart(inc, cell, mesh, out),
             Err(Failure::Retry { reason, cell, detail }) => {
                 mesh.coords.copy_from_slice(&bufs.saved);
+                if bufs.u.iter().all(|x| x.is_finite()) {
+                    self.predictor.reject(&bufs.u, inc.h);
+                }
                 return self.split(inc, reason, cell, detail, out);
             }
         }
@@ -742,6 +775,11 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
 /// equal steps. After one previous increment, u_k ≈ h_k v_(k-1); after a step
 /// back the curvature term is dropped until two increments are known again
 /// (the path was just found to bend).
+///
+/// An increment retried from the same geometry (after a step back) starts
+/// instead from the rejected attempt's solution scaled to the new step: its
+/// linear step has the same matrix and a right-hand side scaled by the step,
+/// so for the linear formulations that start already solves it.
 #[derive(Debug, Clone)]
 pub struct Predictor {
     v1: Vec<f64>,
@@ -749,15 +787,24 @@ pub struct Predictor {
     h1: f64,
     h2: f64,
     known: usize,
+    /// The solution per unit load of an attempt from the current start
+    /// geometry (a rejected one, or one given), until an increment is accepted.
+    here: Option<Vec<f64>>,
 }
 
 impl Predictor {
     pub fn new(n: usize) -> Predictor {
-        Predictor { v1: vec![0.0; n], v2: vec![0.0; n], h1: 0.0, h2: 0.0, known: 0 }
+        Predictor { v1: vec![0.0; n], v2: vec![0.0; n], h1: 0.0, h2: 0.0, known: 0, here: None }
     }
 
     /// The guess for an increment of size `h`, written into `u`.
     pub fn predict_into(&self, h: f64, u: &mut [f64]) {
+        if let Some(rate) = &self.here {
+            for (x, v) in u.iter_mut().zip(rate) {
+                *x = h * v;
+            }
+            return;
+        }
         match self.known {
             0 => u.fill(0.0),
             1 => {
@@ -776,6 +823,7 @@ impl Predictor {
 
     /// Record the solution `u` of an accepted increment of size `h`.
     pub fn accept(&mut self, u: &[f64], h: f64) {
+        self.here = None;
         std::mem::swap(&mut self.v1, &mut self.v2);
         for (v, x) in self.v1.iter_mut().zip(u) {
             *v = x / h;
@@ -787,6 +835,18 @@ impl Predictor {
     /// Forget the curvature term after a rejected increment.
     pub fn step_back(&mut self) {
         self.known = self.known.min(1);
+    }
+
+    /// Record the solution `u` of an increment of size `h` rejected from the
+    /// geometry the next attempt starts from.
+    pub fn reject(&mut self, u: &[f64], h: f64) {
+        self.here = Some(u.iter().map(|x| x / h).collect());
+    }
+
+    /// Start the next increment from `rate` (per unit load), a solution from
+    /// the geometry it starts from.
+    pub fn start_from(&mut self, rate: &[f64]) {
+        self.here = Some(rate.to_vec());
     }
 }
 
@@ -835,6 +895,27 @@ mod tests {
         p.step_back();
         p.predict_into(0.05, &mut u);
         assert!((u[0] - 0.75).abs() < 1e-14 && (u[1] - 1.0).abs() < 1e-14, "{u:?}");
+    }
+
+    #[test]
+    fn a_retried_increment_starts_from_the_rejected_solution_scaled_until_one_is_accepted() {
+        let mut p = Predictor::new(2);
+        let mut u = vec![9.0; 2];
+        p.accept(&[1.0, 2.0], 0.1);
+        // Rejected from the geometry the retry starts from: its solution, scaled.
+        p.reject(&[3.0, -1.0], 0.2);
+        p.step_back();
+        p.predict_into(0.1, &mut u);
+        assert!((u[0] - 1.5).abs() < 1e-15 && (u[1] + 0.5).abs() < 1e-15, "{u:?}");
+        // Accepted: the history again, 2 u1 - u2 for equal steps.
+        p.accept(&[1.5, -0.5], 0.1);
+        p.predict_into(0.1, &mut u);
+        assert!((u[0] - 2.0).abs() < 1e-14 && (u[1] + 3.0).abs() < 1e-14, "{u:?}");
+        // A start given for the first increment.
+        let mut q = Predictor::new(2);
+        q.start_from(&[4.0, 2.0]);
+        q.predict_into(0.5, &mut u);
+        assert_eq!(u, [2.0, 1.0]);
     }
 
     #[test]

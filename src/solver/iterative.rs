@@ -239,6 +239,19 @@ impl IterativeSolver {
     }
 
     /// One PCG attempt with the preconditioner built in `mode`.
+    /// Whether `x` solves the system to PCG's tolerance: ‖b − A x‖ ≤ rtol ‖b‖, b ≠ 0.
+    fn solves_already(&mut self, values: &[f64], rhs: &[f64], x: &[f64]) -> bool {
+        let b = rhs.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if b == 0.0 || x.iter().all(|&v| v == 0.0) {
+            return false;
+        }
+        self.op.update(values);
+        let mut r = vec![0.0; rhs.len()];
+        self.op.matvec_into(values, x, &mut r);
+        let r = r.iter().zip(rhs).map(|(ax, b)| (b - ax) * (b - ax)).sum::<f64>().sqrt();
+        r <= self.params.pcg.rtol * b
+    }
+
     fn try_pcg_solve(
         &mut self,
         pattern: &SymmetricCsc,
@@ -402,6 +415,11 @@ impl LinearSolver for IterativeSolver {
     /// `fallback_max_dofs` unknowns, the direct solver. The stats say which
     /// one solved the system and why the first attempt failed.
     fn solve(&mut self, pattern: &SymmetricCsc, values: &[f64], rhs: &[f64], x: &mut [f64]) -> Result<SolveStats> {
+        // A start that already meets the tolerance (a step retried from the
+        // same matrix) needs no preconditioner.
+        if self.solves_already(values, rhs, x) {
+            return Ok(SolveStats { iterations: 0, solved_by: SolvedBy::Pcg, fallback: None });
+        }
         let x0 = x.to_vec();
         let mode = if self.params.safe_preconditioner { Mode::Safe } else { Mode::Fast };
         let first = match self.try_pcg_solve(pattern, values, rhs, x, mode) {
@@ -470,5 +488,31 @@ mod tests {
         let mut solver = IterativeSolver::try_new(&a, 1, Vec::new(), params).unwrap();
         let r = solver.solve(&a, &v, &b, &mut vec![0.0; a.n]);
         assert!(matches!(r, Err(Error::Solver { message: ref m, .. }) if m.contains("direct fallback")), "{r:?}");
+    }
+
+    #[test]
+    fn a_start_that_solves_the_system_takes_no_iteration_and_a_scaled_one_solves_the_scaled_system() {
+        let (a, v) = grid_laplacian(12, 1);
+        let x_true: Vec<f64> = (0..a.n).map(|i| (i as f64 * 0.3).cos()).collect();
+        let b = a.sym_matvec(&v, &x_true);
+        let mut solver = IterativeSolver::try_new(&a, 1, Vec::new(), IterativeParams::default()).unwrap();
+        let mut x = vec![0.0; a.n];
+        let cold = solver.solve(&a, &v, &b, &mut x).unwrap();
+        assert!(cold.iterations > 0, "{cold:?}");
+        // The same system from its solution, then half the right-hand side
+        // from half of it: no iteration, and the start is kept.
+        let solved = x.clone();
+        assert_eq!(solver.solve(&a, &v, &b, &mut x).unwrap().iterations, 0);
+        assert_eq!(x, solved);
+        let half_b: Vec<f64> = b.iter().map(|v| 0.5 * v).collect();
+        let mut half: Vec<f64> = solved.iter().map(|v| 0.5 * v).collect();
+        let stats = solver.solve(&a, &v, &half_b, &mut half).unwrap();
+        assert_eq!((stats.iterations, stats.solved_by, stats.fallback), (0, SolvedBy::Pcg, None));
+        // A start off the solution still iterates to it.
+        let mut off: Vec<f64> = solved.iter().map(|v| v + 1e-3).collect();
+        assert!(solver.solve(&a, &v, &b, &mut off).unwrap().iterations > 0);
+        let ax = a.sym_matvec(&v, &off);
+        let (r, bn) = ax.iter().zip(&b).fold((0.0, 0.0), |(r, n), (p, q)| (r + (p - q) * (p - q), n + q * q));
+        assert!(r.sqrt() <= IterativeParams::default().pcg.rtol * bn.sqrt(), "{:e}", (r / bn).sqrt());
     }
 }
