@@ -13,6 +13,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
+#include <optional>
 
 namespace {
 
@@ -39,6 +40,20 @@ std::string json_number(double v) {
   return buf;
 }
 
+/** `s` as the inside of a JSON string. */
+std::string json_escape(const std::string &s) {
+  std::string out;
+  for (char c : s) {
+    if (c == '"' || c == '\\') out += '\\', out += c;
+    else if (static_cast<unsigned char>(c) < 0x20) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\u%04x", c);
+      out += buf;
+    } else out += c;
+  }
+  return out;
+}
+
 /** The run's linear solves as a JSON array: which solver produced each
  *  solution, why the first choice did not ("none" when it did), iterations. */
 std::string solves_json(const hocurve::Mesh &mesh) {
@@ -58,6 +73,7 @@ int main(int argc, char **argv) {
               caps = "remove";
   int order = 0, increments = 1, threads = 0, per_2pi = 12;
   double h = 0.0, poisson = 0.3;
+  bool placement_given = false;
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
     auto value = [&]() -> std::string {
@@ -74,7 +90,7 @@ int main(int argc, char **argv) {
     else if (a == "--poisson") poisson = std::atof(value().c_str());
     else if (a == "--increments") increments = std::atoi(value().c_str());
     else if (a == "--threads") threads = std::atoi(value().c_str());
-    else if (a == "--placement") placement = value();
+    else if (a == "--placement") placement = value(), placement_given = true;
     else if (a == "--adaptive") adaptive = value();
     else if (a == "--optimize") optimize = value();
     else if (a == "--caps") caps = value();
@@ -107,22 +123,44 @@ int main(int argc, char **argv) {
     occt::LinearMesh lm = occt::collect(dim);
     auto t_mesh = std::chrono::steady_clock::now();
 
-    occt::Projector proj;
-    proj.placement = placement == "closest" ? occt::Placement::Closest : occt::Placement::Parametric;
-    hocurve::Mesh mesh = occt::make_mesh(lm, proj);
     const HocFormulation f = parse_formulation(formulation);
     // The incrementally linearised and nonlinear formulations need a hyperelastic material.
     const bool hyper = f == HOC_FORMULATION_IIL || f == HOC_FORMULATION_CIL || f == HOC_FORMULATION_NONLINEAR;
-    mesh.set_material(hyper ? HOC_MATERIAL_NEO_HOOKEAN : HOC_MATERIAL_LINEAR_ELASTIC, 1e5, poisson);
-    mesh.set_formulation(f);
-    mesh.set_threads(threads);
-    mesh.set_order(order);
-    // Off: a step that inverts a cell is kept rather than halved, so the run
-    // ends with the mesh and its invalid cells counted (exit status 3).
-    if (adaptive == "off") mesh.set_adaptive_stepping(0);
-    if (optimize == "off") mesh.set_optimize(false);
-    if (caps == "keep") mesh.set_remove_caps(false);
-    mesh.run_increments(increments);
+    occt::Projector proj;
+    auto curve = [&]() {
+      proj = occt::Projector{};
+      proj.placement = placement == "closest" ? occt::Placement::Closest : occt::Placement::Parametric;
+      hocurve::Mesh mesh = occt::make_mesh(lm, proj);
+      mesh.set_material(hyper ? HOC_MATERIAL_NEO_HOOKEAN : HOC_MATERIAL_LINEAR_ELASTIC, 1e5, poisson);
+      mesh.set_formulation(f);
+      mesh.set_threads(threads);
+      mesh.set_order(order);
+      // Off: a step that inverts a cell is kept rather than halved, so the run
+      // ends with the mesh and its invalid cells counted (exit status 3).
+      if (adaptive == "off") mesh.set_adaptive_stepping(0);
+      if (optimize == "off") mesh.set_optimize(false);
+      if (caps == "keep") mesh.set_remove_caps(false);
+      mesh.run_increments(increments);
+      return mesh;
+    };
+    // Without --placement: the parametric placement, and if the run cannot
+    // make every cell valid, once more with the closest point (the two put
+    // boundary nodes at different places of the CAD; on U_Joint_2 at
+    // h = 17.5, p = 2 only the closest point's can be made valid). The
+    // report says so (placement_retry).
+    std::string retry;
+    std::optional<hocurve::Mesh> curved;
+    try {
+      curved.emplace(curve());
+    } catch (const hocurve::Error &e) {
+      if (placement_given || placement != "parametric" || e.status() != HOC_ERROR_INVALID_ELEMENT) throw;
+      retry = e.what();
+      std::fprintf(stderr, "hocurve-occt: with the parametric placement: %s\nhocurve-occt: trying the closest point\n",
+                   e.what());
+      placement = "closest";
+      curved.emplace(curve());
+    }
+    hocurve::Mesh &mesh = *curved;
     auto t_curve = std::chrono::steady_clock::now();
     const HocQuality q = mesh.quality();
     const HocOptimization opt = mesh.optimization();
@@ -141,7 +179,8 @@ int main(int argc, char **argv) {
                 order, nodes, q.min_q1, q.min_q3, q.mean_q3, q.n_invalid, secs(t0, t_end), output.c_str());
     const occt::Placer *pl = proj.placer.get();
     if (pl && placement == "closest")
-      std::printf("placement: closest point (%zu answers replaced by the local foot)\n", pl->closest_replaced);
+      std::printf("placement: closest point%s (%zu answers replaced by the local foot)\n",
+                  retry.empty() ? "" : ", after the parametric placement left cells invalid", pl->closest_replaced);
     else if (pl)
       std::printf("placement: %zu nodes by closest point (%zu on no edge or facet, %zu seam, %zu too far; %zu "
                   "answers replaced by the local foot), %zu projected on %zu distorted facets (%zu facets at a pole, "
@@ -150,7 +189,7 @@ int main(int argc, char **argv) {
                   pl->projected, pl->distorted_facets, pl->pole_facets, pl->seam_facets);
     if (!report.empty()) {
       std::ofstream r(report);
-      r << "{\n  \"model\": \"" << model << "\",\n  \"dim\": " << dim << ",\n  \"order\": " << order
+      r << "{\n  \"model\": \"" << json_escape(model) << "\",\n  \"dim\": " << dim << ",\n  \"order\": " << order
         << ",\n  \"formulation\": \"" << formulation << "\",\n  \"material\": \""
         << (hyper ? "neo-hookean" : "linear") << "\",\n  \"poisson\": " << json_number(poisson)
         << ",\n  \"increments\": " << increments << ",\n  \"adaptive\": \"" << adaptive << "\"" << ",\n  \"cells_given\": " << lm.cells.size() / (dim + 1)
@@ -159,7 +198,9 @@ int main(int argc, char **argv) {
         << lm.edge_tags.size() << ",\n  \"min_q1\": " << json_number(q.min_q1)
         << ",\n  \"min_q2\": " << json_number(q.min_q2) << ",\n  \"min_q3\": " << json_number(q.min_q3)
         << ",\n  \"mean_q3\": " << json_number(q.mean_q3) << ",\n  \"invalid_elements\": " << q.n_invalid
-        << ",\n  \"placement\": \"" << placement << "\",\n  \"placement_fallbacks\": " << (pl ? pl->fallbacks : 0)
+        << ",\n  \"placement\": \"" << placement << "\",\n  \"placement_retry\": "
+        << (retry.empty() ? std::string("null") : "\"" + json_escape(retry) + "\"")
+        << ",\n  \"placement_fallbacks\": " << (pl ? pl->fallbacks : 0)
         << ",\n  \"placement_fallback_reasons\": {\"unlocated\": " << (pl ? pl->fallbacks_unlocated : 0)
         << ", \"seam\": " << (pl ? pl->fallbacks_seam : 0) << ", \"far\": " << (pl ? pl->fallbacks_far : 0)
         << "},\n  \"closest_point_replaced\": " << (pl ? pl->closest_replaced : 0)
