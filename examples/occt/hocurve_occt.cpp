@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <optional>
 
@@ -73,7 +74,7 @@ int main(int argc, char **argv) {
               caps = "remove";
   int order = 0, increments = 1, threads = 0, per_2pi = 12;
   double h = 0.0, poisson = 0.3;
-  bool placement_given = false;
+  bool placement_given = false, caps_given = false;
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
     auto value = [&]() -> std::string {
@@ -93,7 +94,7 @@ int main(int argc, char **argv) {
     else if (a == "--placement") placement = value(), placement_given = true;
     else if (a == "--adaptive") adaptive = value();
     else if (a == "--optimize") optimize = value();
-    else if (a == "--caps") caps = value();
+    else if (a == "--caps") caps = value(), caps_given = true;
     else if (a == "--output") output = value();
     else if (a == "--report") report = value();
     else if (a == "-h" || a == "--help") {
@@ -143,22 +144,34 @@ int main(int argc, char **argv) {
       mesh.run_increments(increments);
       return mesh;
     };
-    // Without --placement: the parametric placement, and if the run cannot
-    // make every cell valid, once more with the closest point (the two put
-    // boundary nodes at different places of the CAD; on U_Joint_2 at
-    // h = 17.5, p = 2 only the closest point's can be made valid). The
-    // report says so (placement_retry).
-    std::string retry;
+    // A run that cannot make every cell valid ("an element became
+    // inverted") is tried again with what the command line left to its
+    // default: the closest-point placement (it puts boundary nodes at other
+    // places of the CAD; on U_Joint_2 at h = 17.5, p = 2 only its can be
+    // made valid), then the caps kept (the cap removal can leave cells that
+    // no curving keeps valid: SampleCrankshaft4A at h = 56, p = 3 and at
+    // h = 112, p = 2). Each retry goes to stderr and to the report.
+    struct Retry {
+      std::string change, after;
+    };
+    std::vector<Retry> retries;
+    std::vector<std::pair<std::string, std::function<void()>>> changes;
+    const std::string placement0 = placement, caps0 = caps;
+    if (!placement_given && placement == "parametric")
+      changes.push_back({"placement closest", [&] { placement = "closest", caps = caps0; }});
+    if (!caps_given && caps == "remove")
+      changes.push_back({"caps keep", [&] { placement = placement0, caps = "keep"; }});
     std::optional<hocurve::Mesh> curved;
-    try {
-      curved.emplace(curve());
-    } catch (const hocurve::Error &e) {
-      if (placement_given || placement != "parametric" || e.status() != HOC_ERROR_INVALID_ELEMENT) throw;
-      retry = e.what();
-      std::fprintf(stderr, "hocurve-occt: with the parametric placement: %s\nhocurve-occt: trying the closest point\n",
-                   e.what());
-      placement = "closest";
-      curved.emplace(curve());
+    for (std::size_t k = 0;; ++k) {
+      try {
+        curved.emplace(curve());
+        break;
+      } catch (const hocurve::Error &e) {
+        if (k == changes.size() || e.status() != HOC_ERROR_INVALID_ELEMENT) throw;
+        std::fprintf(stderr, "hocurve-occt: %s\nhocurve-occt: trying again with %s\n", e.what(), changes[k].first.c_str());
+        retries.push_back({changes[k].first, e.what()});
+        changes[k].second();
+      }
     }
     hocurve::Mesh &mesh = *curved;
     auto t_curve = std::chrono::steady_clock::now();
@@ -177,16 +190,23 @@ int main(int argc, char **argv) {
                 lm.edge_tags.size(), rep.removed_caps, rep.edge_splits, cc.first);
     std::printf("p = %d: %zu nodes, min Q1 %.4f, min Q3 %.4f, mean Q3 %.4f, %zu invalid, %.2f s; wrote %s\n",
                 order, nodes, q.min_q1, q.min_q3, q.mean_q3, q.n_invalid, secs(t0, t_end), output.c_str());
+    for (const Retry &r : retries) std::printf("tried again with %s after: %s\n", r.change.c_str(), r.after.c_str());
     const occt::Placer *pl = proj.placer.get();
     if (pl && placement == "closest")
-      std::printf("placement: closest point%s (%zu answers replaced by the local foot)\n",
-                  retry.empty() ? "" : ", after the parametric placement left cells invalid", pl->closest_replaced);
+      std::printf("placement: closest point (%zu answers replaced by the local foot)\n", pl->closest_replaced);
     else if (pl)
       std::printf("placement: %zu nodes by closest point (%zu on no edge or facet, %zu seam, %zu too far; %zu "
                   "answers replaced by the local foot), %zu projected on %zu distorted facets (%zu facets at a pole, "
                   "%zu across a seam)\n",
                   pl->fallbacks, pl->fallbacks_unlocated, pl->fallbacks_seam, pl->fallbacks_far, pl->closest_replaced,
                   pl->projected, pl->distorted_facets, pl->pole_facets, pl->seam_facets);
+    auto retries_json = [&] {
+      std::string out;
+      for (const Retry &r : retries)
+        out += std::string(out.empty() ? "" : ", ") + "{\"change\": \"" + r.change + "\", \"after\": \"" +
+               json_escape(r.after) + "\"}";
+      return out;
+    };
     if (!report.empty()) {
       std::ofstream r(report);
       r << "{\n  \"model\": \"" << json_escape(model) << "\",\n  \"dim\": " << dim << ",\n  \"order\": " << order
@@ -198,9 +218,8 @@ int main(int argc, char **argv) {
         << lm.edge_tags.size() << ",\n  \"min_q1\": " << json_number(q.min_q1)
         << ",\n  \"min_q2\": " << json_number(q.min_q2) << ",\n  \"min_q3\": " << json_number(q.min_q3)
         << ",\n  \"mean_q3\": " << json_number(q.mean_q3) << ",\n  \"invalid_elements\": " << q.n_invalid
-        << ",\n  \"placement\": \"" << placement << "\",\n  \"placement_retry\": "
-        << (retry.empty() ? std::string("null") : "\"" + json_escape(retry) + "\"")
-        << ",\n  \"placement_fallbacks\": " << (pl ? pl->fallbacks : 0)
+        << ",\n  \"placement\": \"" << placement << "\",\n  \"caps\": \"" << caps << "\",\n  \"retries\": ["
+        << retries_json() << "],\n  \"placement_fallbacks\": " << (pl ? pl->fallbacks : 0)
         << ",\n  \"placement_fallback_reasons\": {\"unlocated\": " << (pl ? pl->fallbacks_unlocated : 0)
         << ", \"seam\": " << (pl ? pl->fallbacks_seam : 0) << ", \"far\": " << (pl ? pl->fallbacks_far : 0)
         << "},\n  \"closest_point_replaced\": " << (pl ? pl->closest_replaced : 0)

@@ -498,7 +498,9 @@ impl Run<'_> {
         let optimiser = Optimiser { straight, basis: &setup.basis, cache: &cache, opts: &opts.optimize, projector, ti };
         let mut done = optimiser.finish(mesh, certified)?;
         let mut restarted = false;
-        if let (Some(mut second), true) = (straight_mesh, done.invalid() > 0) {
+        // (Stopped at load 0, the first start was already that.)
+        let stopped_after_0 = solved.stopped.as_ref().is_some_and(|s| s.load > 0.0);
+        if let (Some(mut second), true) = (straight_mesh, done.invalid() > 0 && stopped_after_0) {
             // A second start: the whole load in one linear solve on the straight
             // mesh, then the optimisation; kept if it leaves fewer invalid cells.
             let (finish, timings, tick) = (setup.finish_stepping.clone(), &mut self.timings, &mut *self.tick);
