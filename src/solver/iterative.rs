@@ -238,7 +238,6 @@ impl IterativeSolver {
         })
     }
 
-    /// One PCG attempt with the preconditioner built in `mode`.
     /// Whether `x` solves the system to PCG's tolerance: ‖b − A x‖ ≤ rtol ‖b‖, b ≠ 0.
     fn solves_already(&mut self, values: &[f64], rhs: &[f64], x: &[f64]) -> bool {
         let b = rhs.iter().map(|v| v * v).sum::<f64>().sqrt();
@@ -252,6 +251,7 @@ impl IterativeSolver {
         r <= self.params.pcg.rtol * b
     }
 
+    /// One PCG attempt with the preconditioner built in `mode`.
     fn try_pcg_solve(
         &mut self,
         pattern: &SymmetricCsc,
