@@ -115,10 +115,9 @@ impl Pieces {
             for piece in &self.pieces {
                 let Some(entity) = entity(piece, cell, constraint) else { continue };
                 let k = key(piece, cell);
-                if seen.contains(&k) {
+                if !seen.insert(k.clone()) {
                     continue;
                 }
-                seen.insert(k.clone());
                 for (a, &n) in cell.iter().enumerate() {
                     xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
                 }
@@ -166,10 +165,10 @@ impl Pieces {
                     continue;
                 }
                 let pk = key(piece, cell);
-                if seen.contains(&pk) {
+                let Some(entity) = entity(piece, cell, constraint) else { continue };
+                if !seen.insert(pk.clone()) {
                     continue;
                 }
-                let Some(entity) = entity(piece, cell, constraint) else { continue };
                 let (Some(now), Some(&was)) = (self.distance(projector, piece, entity, &after[k]), before.by_piece.get(&pk))
                 else {
                     return false;
@@ -177,7 +176,6 @@ impl Pieces {
                 if now > (FIDELITY_FACTOR * was).max(before.level) + ROUND_OFF * size {
                     return false;
                 }
-                seen.insert(pk);
             }
         }
         true
