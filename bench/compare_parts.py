@@ -224,6 +224,8 @@ def table(rows, models, orders):
             notes = [f"{caps} caps"] if caps else []
             if rep.get("edge_splits"):
                 notes.append(f"{rep['edge_splits']} edges split")
+            if rep.get("surface_flips"):
+                notes.append(f"{rep['surface_flips']} surface edges flipped")
             cs += f" ({', '.join(notes)})" if notes else ""
         line = [name, str(p), cs]
         for r in rs:

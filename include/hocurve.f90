@@ -117,13 +117,14 @@ module hocurve
 
   !> HocRepair: boundary caps removed; bad cells found by the last run (all, on one
   !> surface, bulging), flips by kind (2-3, 3-2, edge removal, 2D edge flip), surface
-  !> caps removed, cells removed and added, bad cells left, interior edges split.
+  !> caps removed, cells removed and added, bad cells left, interior edges split,
+  !> surface edges flipped.
   type, bind(C), public :: hoc_repair
     integer(c_size_t) :: removed_caps
     integer(c_size_t) :: bad_cells, surface_cells, bulge_cells
     integer(c_size_t) :: flips_23, flips_32, edge_removals, flips_22, surface_caps
     integer(c_size_t) :: cells_removed, cells_added, bad_cells_left
-    integer(c_size_t) :: edge_splits
+    integer(c_size_t) :: edge_splits, surface_flips
   end type hoc_repair
 
   abstract interface

@@ -13,7 +13,7 @@
  */
 #define HOCURVE_VERSION_MAJOR 0
 
-#define HOCURVE_VERSION_MINOR 3
+#define HOCURVE_VERSION_MINOR 4
 
 #define HOCURVE_VERSION_PATCH 0
 
@@ -304,6 +304,12 @@ typedef struct {
    * cells between that triangle and the boundary flat.
    */
   size_t edge_splits;
+  /**
+   * Boundary edges flipped to the other diagonal of their two facets
+   * (on one smooth surface), because curving would fold one of those
+   * facets on the surface.
+   */
+  size_t surface_flips;
 } HocRepair;
 
 /**

@@ -13,11 +13,15 @@
 //!   with all vertices on the sphere, one of them a cap at 86°, the other
 //!   with one sphere face bulging twice its height over it. No single flip is
 //!   valid; both go as surface caps, one round after the other.
+//!
+//! And on a whole gmsh sphere cavity, `sphere_cavity_coarse_gmsh.msh`
+//! (radius 0.8, CharacteristicLengthMax 0.7, Min 0.35), where one sphere
+//! facet folds once curved: a surface flip.
 
 use std::path::Path;
 
 use hocurve::curve::{curve, CurveOptions};
-use hocurve::geometry::{facet_bulges, Shape, ShapeProjector};
+use hocurve::geometry::{facet_bulges, project_samples, Shape, ShapeProjector};
 use hocurve::mesh::repair::{bad_cells, repair_with};
 use hocurve::mesh::{validate_and_orient, LinearMesh};
 use hocurve::session::Session;
@@ -111,7 +115,7 @@ fn cells_inside_the_shell_of_a_sphere_cavity_are_found_and_removed() {
     let apex = *cell.iter().find(|v| !f.contains(v)).unwrap();
     assert!(bulge[k] > height(&mesh, *f, apex), "bulge {} height {}", bulge[k], height(&mesh, *f, apex));
 
-    let r = repair_with(&mesh, true, |m| facet_bulges(m, &projector)).unwrap();
+    let r = repair_with(&mesh, true, |m, s| project_samples(m.dim, s, &projector)).unwrap();
     let s = r.summary;
     assert_eq!((s.surface_caps, s.cells_removed, s.cells_added, s.bad_cells_left), (2, 2, 0, 0), "{s:?}");
     assert_eq!(r.input_cell, (2..15).collect::<Vec<_>>());
@@ -152,9 +156,9 @@ fn the_session_repairs_at_each_run_and_maps_the_new_cells() {
     assert_eq!(s.quality().n_certified_invalid, 0);
 }
 
-/// Projects onto the sphere of radius 0.70 about the origin (3D points).
-unsafe extern "C" fn sphere_070(
-    _: *mut std::ffi::c_void,
+/// Projects onto the sphere about the origin whose radius `user` points to (3D points).
+unsafe extern "C" fn sphere(
+    user: *mut std::ffi::c_void,
     _: std::ffi::c_int,
     _: std::ffi::c_int,
     n: usize,
@@ -162,10 +166,11 @@ unsafe extern "C" fn sphere_070(
     out: *mut f64,
 ) -> std::ffi::c_int {
     let (p, o) = (std::slice::from_raw_parts(points, 3 * n), std::slice::from_raw_parts_mut(out, 3 * n));
+    let r = *(user as *const f64);
     for (x, y) in p.chunks(3).zip(o.chunks_mut(3)) {
         let l = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
         for k in 0..3 {
-            y[k] = 0.70 * x[k] / l;
+            y[k] = r * x[k] / l;
         }
     }
     0
@@ -181,7 +186,8 @@ fn the_c_abi_turns_the_repair_on_and_off_and_reports_it() {
         let mut m = std::ptr::null_mut();
         assert_eq!(hoc_mesh_create(3, mesh.n_vertices(), mesh.coords.as_ptr(), 7, cells.as_ptr(), &mut m), HOC_OK);
         assert_eq!(hoc_mesh_set_boundary(m, mesh.n_facets(), facets.as_ptr(), mesh.facet_tags.as_ptr()), HOC_OK);
-        assert_eq!(hoc_mesh_set_projector(m, Some(sphere_070), std::ptr::null_mut()), HOC_OK);
+        let mut radius = 0.70;
+        assert_eq!(hoc_mesh_set_projector(m, Some(sphere), &mut radius as *mut f64 as *mut _), HOC_OK);
         assert_eq!(hoc_mesh_set_order(m, 2, HOC_SPACING_OPTIMAL), HOC_OK);
         // Caps kept: the repair flips (by default it would remove the cell as a cap).
         assert_eq!(hoc_mesh_set_remove_caps(m, 0), HOC_OK);
@@ -255,5 +261,55 @@ fn a_cell_squeezed_by_a_smooth_boundary_is_split_and_curves_well() {
         assert_eq!((r.cells, &r.input_cell[..]), (5, &[2, 0, 0, 1, 1][..]));
         assert_eq!(r.quality.n_certified_invalid, 0);
         assert!(r.quality.min_q3 > 0.75, "p = {order}: {}", r.quality.min_q3);
+    }
+}
+
+/// On gmsh's coarse sphere cavity the only change of the repair is one
+/// surface flip: a sphere facet whose chord's midpoint, once on the sphere,
+/// comes most of the way to its third vertex. Without it, ILE at p = 3 with
+/// adaptive stepping gives up; with it, the elastic stage alone gives a
+/// valid mesh, with every boundary vertex still on the sphere.
+#[test]
+fn a_surface_flip_makes_valid_a_sphere_cavity_the_elastic_stage_cannot_curve() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/sphere_cavity_coarse_gmsh.msh");
+    let mut mesh = hocurve::io::gmsh::to_linear_mesh(&hocurve::io::gmsh::read_msh(&path).unwrap()).unwrap();
+    let mut projector = ShapeProjector::new();
+    projector.insert(7, Shape::Sphere { center: [0.0; 3], radius: 0.8 });
+    mesh.retain_tags(|d, t| projector.get(d, t).is_some());
+    let mut o = CurveOptions { order: 3, repair: false, ..Default::default() };
+    o.optimize.enabled = false;
+    match curve(&mesh, &projector, &o, &mut |_| true) {
+        Err(Error::InvalidElement { message: m, .. }) => assert!(m.contains("adaptive stepping"), "{m}"),
+        other => panic!("expected the elastic stage to fail, got {:?}", other.map(|c| c.report.quality)),
+    }
+    o.repair = true;
+    let c = curve(&mesh, &projector, &o, &mut |_| true).unwrap();
+    let r = &c.report;
+    let mut expected =
+        hocurve::mesh::RepairSummary { surface_flips: 1, cells_removed: 2, cells_added: 2, ..Default::default() };
+    expected.bad_cells = r.repair.bad_cells;
+    assert_eq!(r.repair, expected);
+    assert_eq!((r.quality.n_certified_invalid, r.quality.n_uncertain), (0, 0));
+    assert!(r.quality.certified_min_q3 > 0.0);
+    let (m, _) = validate_and_orient(&mesh).unwrap();
+    let repaired = repair_with(&m, true, |m, s| project_samples(m.dim, s, &projector)).unwrap();
+    let facets = repaired.mesh.facets.chunks(3).zip(&repaired.mesh.facet_tags);
+    assert!(facets.filter(|(_, &t)| t == 7).all(|(f, _)| f.iter().all(|&v| on_sphere(&repaired.mesh, v, 0.8))));
+    // The C ABI reports it.
+    use hocurve::ffi::*;
+    let cells: Vec<i64> = m.cells.iter().map(|&v| v as i64).collect();
+    let facets: Vec<i64> = m.facets.iter().map(|&v| v as i64).collect();
+    unsafe {
+        let mut h = std::ptr::null_mut();
+        assert_eq!(hoc_mesh_create(3, m.n_vertices(), m.coords.as_ptr(), m.n_cells(), cells.as_ptr(), &mut h), HOC_OK);
+        assert_eq!(hoc_mesh_set_boundary(h, m.n_facets(), facets.as_ptr(), m.facet_tags.as_ptr()), HOC_OK);
+        let mut radius = 0.8;
+        assert_eq!(hoc_mesh_set_projector(h, Some(sphere), &mut radius as *mut f64 as *mut _), HOC_OK);
+        assert_eq!(hoc_mesh_set_order(h, 3, HOC_SPACING_OPTIMAL), HOC_OK);
+        assert_eq!(hoc_mesh_run_increments(h, 10), HOC_OK);
+        let mut s = HocRepair::default();
+        assert_eq!(hoc_mesh_repair_summary(h, &mut s), HOC_OK);
+        assert_eq!((s.surface_flips, s.cells_removed, s.cells_added), (1, 2, 2));
+        hoc_mesh_destroy(&mut h);
     }
 }

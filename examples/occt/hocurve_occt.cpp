@@ -185,9 +185,9 @@ int main(int argc, char **argv) {
     auto secs = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
 
     std::printf("%s: dim %d, %zu vertices, %zu cells given, %zu boundary facets, %zu feature edges; "
-                "%zu caps removed, %zu edges split, %zu cells curved\n",
+                "%zu caps removed, %zu edges split, %zu surface edges flipped, %zu cells curved\n",
                 model.c_str(), dim, lm.coords.size() / dim, lm.cells.size() / (dim + 1), lm.facet_tags.size(),
-                lm.edge_tags.size(), rep.removed_caps, rep.edge_splits, cc.first);
+                lm.edge_tags.size(), rep.removed_caps, rep.edge_splits, rep.surface_flips, cc.first);
     std::printf("p = %d: %zu nodes, min Q1 %.4f, min Q3 %.4f, mean Q3 %.4f, %zu invalid, %.2f s; wrote %s\n",
                 order, nodes, q.min_q1, q.min_q3, q.mean_q3, q.n_invalid, secs(t0, t_end), output.c_str());
     for (const Retry &r : retries) std::printf("tried again with %s after: %s\n", r.change.c_str(), r.after.c_str());
@@ -231,7 +231,7 @@ int main(int argc, char **argv) {
         << rep.flips_23 + rep.flips_32 + rep.edge_removals + rep.flips_22 << ", \"surface_caps\": " << rep.surface_caps
         << ", \"cells_removed\": " << rep.cells_removed << ", \"cells_added\": " << rep.cells_added
         << ", \"bad_cells_left\": " << rep.bad_cells_left
-        << ", \"edge_splits\": " << rep.edge_splits << "}"
+        << ", \"edge_splits\": " << rep.edge_splits << ", \"surface_flips\": " << rep.surface_flips << "}"
         << ",\n  \"elastic_stop\": " << (opt.elastic_stopped ? json_number(opt.elastic_load) : std::string("null"))
         << ",\n  \"elastic_restarted\": " << (opt.elastic_restarted ? "true" : "false")
         << ",\n  \"optimization\": {\"ran\": " << (opt.ran ? "true" : "false") << ", \"target_cells\": "

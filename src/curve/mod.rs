@@ -392,9 +392,9 @@ impl Run<'_> {
         let n_input_cells = prepared.n_input_cells();
         let (reoriented, removed_caps) = (prepared.reoriented_cells(), n_input_cells - prepared.input_cell().len());
         let repaired = match opts.repair {
-            true => {
-                Some(repair_with(prepared.linear(), opts.remove_caps, |m| crate::geometry::facet_bulges(m, projector))?)
-            }
+            true => Some(repair_with(prepared.linear(), opts.remove_caps, |m, s| {
+                crate::geometry::project_samples(m.dim, s, projector)
+            })?),
             false => None,
         };
         let repair = repaired.as_ref().map_or_else(RepairSummary::default, |r| r.summary);

@@ -31,7 +31,7 @@ use crate::Error;
 /// The library's version (hoc_version gives it as a string); the header
 /// and the library linked must agree on it.
 pub const HOCURVE_VERSION_MAJOR: c_int = 0;
-pub const HOCURVE_VERSION_MINOR: c_int = 3;
+pub const HOCURVE_VERSION_MINOR: c_int = 4;
 pub const HOCURVE_VERSION_PATCH: c_int = 0;
 
 /// The defaults that every interface (C, C++, Fortran, the command line and
@@ -282,6 +282,10 @@ pub struct HocRepair {
     /// boundary edges and the boundary is smooth, which would squeeze the
     /// cells between that triangle and the boundary flat.
     pub edge_splits: usize,
+    /// Boundary edges flipped to the other diagonal of their two facets
+    /// (on one smooth surface), because curving would fold one of those
+    /// facets on the surface.
+    pub surface_flips: usize,
 }
 
 /// Projects `n_points` points (`dim` interleaved coordinates each, `dim` the
@@ -1249,6 +1253,7 @@ pub unsafe extern "C" fn hoc_mesh_repair_summary(mesh: *const HocMesh, out: *mut
             cells_added: r.cells_added,
             bad_cells_left: r.bad_cells_left,
             edge_splits: r.edge_splits,
+            surface_flips: r.surface_flips,
         };
         Ok(())
     })

@@ -33,6 +33,19 @@ pub use shapes::{Shape, ShapeProjector};
 pub fn facet_bulges(mesh: &crate::mesh::LinearMesh, projector: &dyn Projector) -> crate::Result<Vec<f64>> {
     use crate::mesh::repair::bulge;
     let samples = bulge::bulge_samples(mesh);
+    let projected = project_samples(mesh.dim, &samples, projector)?;
+    Ok(bulge::facet_bulges(mesh, &samples, &projected))
+}
+
+/// The bulge samples of a mesh of dimension `dim`
+/// ([`crate::mesh::repair::bulge_samples`]) projected onto their entities,
+/// with one call to `projector` per entity (z = 0 in 2D). A projector error
+/// or a non-finite point is an error of the run.
+pub fn project_samples(
+    dim: usize,
+    samples: &crate::mesh::repair::BulgeSamples,
+    projector: &dyn Projector,
+) -> crate::Result<Vec<[f64; 3]>> {
     let mut groups: std::collections::BTreeMap<(usize, i32), Vec<usize>> = Default::default();
     for (i, &e) in samples.entities.iter().enumerate() {
         groups.entry(e).or_default().push(i);
@@ -45,7 +58,7 @@ pub fn facet_bulges(mesh: &crate::mesh::LinearMesh, projector: &dyn Projector) -
             crate::Error::Projection(format!("projector failed on entity (dim {edim}, tag {tag}): {m}"))
         })?;
         for (&i, mut y) in ids.iter().zip(out) {
-            if mesh.dim == 2 {
+            if dim == 2 {
                 y[2] = 0.0;
             }
             if !y.iter().all(|v| v.is_finite()) {
@@ -56,5 +69,5 @@ pub fn facet_bulges(mesh: &crate::mesh::LinearMesh, projector: &dyn Projector) -
             projected[i] = y;
         }
     }
-    Ok(bulge::facet_bulges(mesh, &samples, &projected))
+    Ok(projected)
 }

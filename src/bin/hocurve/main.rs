@@ -503,7 +503,7 @@ fn quality_json(q: &MeshQuality) -> String {
 fn repair_json(r: &hocurve::mesh::RepairSummary) -> String {
     format!(
         "{{\"bad_cells\": {}, \"surface_cells\": {}, \"bulge_cells\": {}, \"flips_23\": {}, \"flips_32\": {}, \
-         \"edge_removals\": {}, \"flips_22\": {}, \"surface_caps\": {}, \"cells_removed\": {}, \"cells_added\": {}, \"bad_cells_left\": {}, \"edge_splits\": {}}}",
+         \"edge_removals\": {}, \"flips_22\": {}, \"surface_caps\": {}, \"cells_removed\": {}, \"cells_added\": {}, \"bad_cells_left\": {}, \"edge_splits\": {}, \"surface_flips\": {}}}",
         r.bad_cells,
         r.surface_cells,
         r.bulge_cells,
@@ -515,7 +515,8 @@ fn repair_json(r: &hocurve::mesh::RepairSummary) -> String {
         r.cells_removed,
         r.cells_added,
         r.bad_cells_left,
-        r.edge_splits
+        r.edge_splits,
+        r.surface_flips
     )
 }
 

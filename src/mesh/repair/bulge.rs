@@ -30,6 +30,9 @@ pub struct BulgeSamples {
     pub entities: Vec<(usize, i32)>,
     /// The facet (index among `mesh.facets`) each point belongs to.
     pub facets: Vec<usize>,
+    /// The edge (sorted vertices) each point is the midpoint of; None for
+    /// a centroid.
+    pub edges: Vec<Option<[usize; 2]>>,
 }
 
 /// The sample points of every tagged facet (module docs).
@@ -42,6 +45,7 @@ pub fn bulge_samples(mesh: &LinearMesh) -> BulgeSamples {
             s.points.push(mid(a, b));
             s.entities.push((1, tag));
             s.facets.push(k);
+            s.edges.push(Some([f[0].min(f[1]), f[0].max(f[1])]));
         }
         return s;
     }
@@ -84,11 +88,13 @@ pub fn bulge_samples(mesh: &LinearMesh) -> BulgeSamples {
                 s.points.push(mid(x[i], x[j]));
                 s.entities.push(entity);
                 s.facets.push(k);
+                s.edges.push(Some(e));
             }
         }
         s.points.push([0, 1, 2].map(|c| (x[0][c] + x[1][c] + x[2][c]) / 3.0));
         s.entities.push((2, tag));
         s.facets.push(k);
+        s.edges.push(None);
     }
     s
 }

@@ -1,6 +1,7 @@
 //! Local flips on a mutable simplex mesh. Every flip replaces a few cells by
-//! others covering the same region, with no new vertex, and touches no
-//! boundary facet: only interior faces and edges are flipped.
+//! others with no new vertex. All but the surface edge flip cover the same
+//! region and touch no boundary facet: only interior faces and edges are
+//! flipped.
 //!
 //! * **2-3** (3D): two tets abcd, abce sharing the interior face abc become
 //!   abed, bced, caed around the new edge de. Valid when de crosses abc.
@@ -11,6 +12,12 @@
 //!   programming over the ring (Klincsek's O(n³)); n = 3 is the 3-2 flip.
 //! * **2-2** (2D): two triangles abc, bad sharing the interior edge ab become
 //!   adc, bcd across the new edge cd. Valid when the quadrilateral is convex.
+//!
+//! * **Surface edge** (3D, n to 2n − 2): the n tets around a boundary edge
+//!   ab between the boundary facets abc and abd, with the open ring c = r₀
+//!   … r_n = d, become two tets per triangle of the best triangulation of
+//!   the ring closed by the new edge cd; the boundary facets become acd and
+//!   bcd. The only flip that changes the boundary ([`super::surface`]).
 //!
 //! A candidate is valid when every new cell is positively oriented and not
 //! degenerate ([`super::detect::DEGENERATE`]) and every new edge is new to
@@ -36,6 +43,9 @@ pub enum FlipKind {
     EdgeRemoval,
     /// 2D: two triangles to two across an interior edge.
     TwoTwo,
+    /// 3D: the n tets around a boundary edge to 2n − 2, the edge flipped
+    /// to the other diagonal of its two boundary facets.
+    SurfaceEdge,
 }
 
 /// A candidate flip: cells to remove, cells to add, and the smallest quality
@@ -66,6 +76,8 @@ pub(crate) struct Work<'a> {
     facets: HashMap<FacetKey, [usize; 2]>,
     /// 3D: edge → number of cells around it.
     edges: HashMap<[usize; 2], u32>,
+    /// Cells of the mesh given (the first indices).
+    n_given: usize,
 }
 
 impl<'a> Work<'a> {
@@ -93,6 +105,7 @@ impl<'a> Work<'a> {
             origin: Vec::with_capacity(n),
             facets: HashMap::with_capacity(2 * n),
             edges: HashMap::new(),
+            n_given: n,
         };
         for (c, o) in cells.into_iter().zip(origin) {
             w.insert(c, o, false);
@@ -178,6 +191,20 @@ impl<'a> Work<'a> {
         for &c in &flip.add {
             self.insert(c, origin.clone(), true);
         }
+    }
+
+    /// The live cells (`dim + 1` vertices each): those of the mesh given,
+    /// in their order, then the new ones; for each, its index in the mesh
+    /// given (None for a new cell) and its origin.
+    pub fn into_cells(mut self) -> (Vec<usize>, Vec<Option<usize>>, Vec<Vec<usize>>) {
+        let d = self.dim;
+        let (mut cells, mut old, mut origin) = (Vec::new(), Vec::new(), Vec::new());
+        for c in (0..self.cells.len()).filter(|&c| self.alive[c]) {
+            cells.extend_from_slice(&self.cells[c][..=d]);
+            old.push((c < self.n_given).then_some(c));
+            origin.push(std::mem::take(&mut self.origin[c]));
+        }
+        (cells, old, origin)
     }
 
     /// The other cell on facet `f` of cell `c`, if `f` is interior.
@@ -304,7 +331,64 @@ impl<'a> Work<'a> {
         if n < 3 {
             return None;
         }
-        let adjacent = |i: usize, j: usize| j == i + 1 || (i == 0 && j == n - 1);
+        let kind = if n == 3 { FlipKind::ThreeTwo } else { FlipKind::EdgeRemoval };
+        self.remove_edge(kind, a, b, tets, &ring, true)
+    }
+
+    /// 3D: remove the boundary edge (a, b) between the boundary facets (a,
+    /// b, c) and (a, b, d), which become (a, c, d) and (b, c, d): the tets
+    /// around ab, whose ring runs open from c to d, become two tets per
+    /// triangle of a triangulation of the ring closed by the new edge cd.
+    /// None when ab is not such an edge, its ring has fewer than three
+    /// vertices (one tet: a cap, see [`super::caps`]) or more than
+    /// [`MAX_RING`], cd is already an edge, or no triangulation is valid.
+    pub fn surface_edge_removal(&self, a: usize, b: usize, c: usize, d: usize) -> Option<Flip> {
+        if self.dim != 3 || self.edges.contains_key(&[c.min(d), c.max(d)]) {
+            return None;
+        }
+        let e = self.facets.get(&facet_key(&[a, b, c]))?;
+        if e[1] != NONE {
+            return None;
+        }
+        // Walk from c across the faces (a, b, y) to the other boundary facet.
+        let (mut tets, mut ring) = (vec![], vec![c]);
+        let (mut cur, mut y) = (e[0], c);
+        loop {
+            let z = *self.cells[cur].iter().find(|&&v| v != a && v != b && v != y)?;
+            tets.push(cur);
+            ring.push(z);
+            if tets.len() > MAX_RING {
+                return None;
+            }
+            match self.neighbour(cur, &facet_key(&[a, b, z])) {
+                Some(next) => (cur, y) = (next, z),
+                None => break,
+            }
+        }
+        if *ring.last()? != d || ring.len() < 3 {
+            return None;
+        }
+        // (a, b, r_i, r_(i+1)) positive, as `remove_edge` wants.
+        let (a, b) = if self.positive(&[a, b, ring[0], ring[1]]) { (a, b) } else { (b, a) };
+        self.remove_edge(FlipKind::SurfaceEdge, a, b, tets, &ring, false)
+    }
+
+    /// Replace the tets around edge (a, b), whose other vertices form the
+    /// ring r₀ … r_(n−1) with (a, b, r_i, r_(i+1)) positive, by two tets per
+    /// triangle of the triangulation of the ring maximising the smallest
+    /// quality (Klincsek's dynamic programme, O(n³)). `closed`: the ring is
+    /// closed (an interior edge), else r_(n−1) r₀ is a new edge.
+    fn remove_edge(
+        &self,
+        kind: FlipKind,
+        a: usize,
+        b: usize,
+        tets: Vec<usize>,
+        ring: &[usize],
+        closed: bool,
+    ) -> Option<Flip> {
+        let n = ring.len();
+        let adjacent = |i: usize, j: usize| j == i + 1 || (closed && i == 0 && j == n - 1);
         let new_edge_ok = |i: usize, j: usize| {
             adjacent(i.min(j), i.max(j)) || !self.edges.contains_key(&[ring[i].min(ring[j]), ring[i].max(ring[j])])
         };
@@ -353,7 +437,6 @@ impl<'a> Work<'a> {
             stack.push((i, k));
             stack.push((k, j));
         }
-        let kind = if n == 3 { FlipKind::ThreeTwo } else { FlipKind::EdgeRemoval };
         self.scored(kind, tets, add)
     }
 }

@@ -43,8 +43,11 @@ pub mod detect;
 pub mod flips;
 mod geom;
 pub mod split;
+pub mod surface;
 #[cfg(test)]
 mod tests;
+
+use std::collections::HashSet;
 
 use crate::mesh::LinearMesh;
 pub use bulge::{bulge_samples, facet_bulges, BulgeSamples};
@@ -91,6 +94,9 @@ pub struct RepairSummary {
     /// Interior edges split at their midpoint, each cell around them into
     /// two, because a smooth boundary would squeeze a cell flat ([`split`]).
     pub edge_splits: usize,
+    /// Boundary edges flipped to the other diagonal of their two facets,
+    /// because curving would fold one of them on its surface ([`surface`]).
+    pub surface_flips: usize,
 }
 
 impl RepairSummary {
@@ -133,7 +139,7 @@ pub fn repair(mesh: &LinearMesh, bulge: &[f64]) -> Repaired {
 pub fn repair_with<E>(
     mesh: &LinearMesh,
     remove_caps: bool,
-    mut measure: impl FnMut(&LinearMesh) -> Result<Vec<f64>, E>,
+    mut measure: impl FnMut(&LinearMesh, &BulgeSamples) -> Result<Vec<[f64; 3]>, E>,
 ) -> Result<Repaired, E> {
     let n = mesh.n_cells();
     let mut cur = mesh.clone();
@@ -141,16 +147,15 @@ pub fn repair_with<E>(
     let mut origin: Vec<Vec<usize>> = (0..n).map(|c| vec![c]).collect();
     let mut same: Vec<Option<usize>> = (0..n).map(Some).collect();
     let mut summary = RepairSummary::default();
-    let mut bulge = measure(&cur)?;
+    let mut m = Measured::of(&cur, &mut measure)?;
     for round in 0..MAX_ROUNDS {
-        let bad = Criteria::new(&cur, &bulge).bad_cells(&cur);
+        let bad = Criteria::new(&cur, &m.bulge).bad_cells(&cur);
         if round == 0 {
             summary.bad_cells = bad.len();
             summary.surface_cells = bad.iter().filter(|(_, a)| a.surface).count();
             summary.bulge_cells = bad.iter().filter(|(_, a)| a.bulge).count();
         }
-        let surface: std::collections::HashSet<usize> =
-            bad.iter().filter(|(_, a)| a.surface).map(|&(c, _)| c).collect();
+        let surface: HashSet<usize> = bad.iter().filter(|(_, a)| a.surface).map(|&(c, _)| c).collect();
         if !remove_caps || surface.is_empty() {
             break;
         }
@@ -159,8 +164,29 @@ pub fn repair_with<E>(
         origin = kept.iter().map(|&c| std::mem::take(&mut origin[c])).collect();
         same = kept.iter().map(|&c| same[c]).collect();
         cur = next;
-        bulge = measure(&cur)?;
+        m = Measured::of(&cur, &mut measure)?;
     }
+    // Surface edges whose facet folds once curved; a flip that does not
+    // lower the squeeze is refused and its round done again without it.
+    let mut refused = HashSet::new();
+    for _ in 0..MAX_ROUNDS {
+        let squeeze = surface::squeezes(&cur, &m.samples, &m.projected);
+        let Some(round) = surface::flip_round(&cur, &m.bulge, &squeeze, origin.clone(), &refused) else { break };
+        let next = Measured::of(&round.mesh, &mut measure)?;
+        let after = surface::squeezes(&round.mesh, &next.samples, &next.projected);
+        let worse: Vec<[usize; 2]> =
+            round.flips.iter().filter(|f| f.squeeze_after(&after) >= f.squeeze).map(|f| f.ab).collect();
+        if !worse.is_empty() {
+            refused.extend(worse);
+            continue;
+        }
+        summary.surface_flips += round.flips.len();
+        same = round.old.iter().map(|o| o.and_then(|c| same[c])).collect();
+        origin = round.origin;
+        cur = round.mesh;
+        m = next;
+    }
+    let bulge = m.bulge;
     let (r, o) = flip_round(&cur, &bulge, origin, mesh);
     let s = r.summary;
     summary.flips_23 = s.flips_23;
@@ -237,6 +263,7 @@ fn flip_round(
                 FlipKind::ThreeTwo => summary.flips_32 += 1,
                 FlipKind::EdgeRemoval => summary.edge_removals += 1,
                 FlipKind::TwoTwo => summary.flips_22 += 1,
+                FlipKind::SurfaceEdge => unreachable!("bad cells are not flipped by surface edge"),
             }
             w.apply(&f);
             changed = true;
@@ -245,24 +272,37 @@ fn flip_round(
             break;
         }
     }
+    summary.bad_cells_left = (0..w.cells.len()).filter(|&c| w.alive[c] && w.assessment[c].is_bad()).count();
     let d = mesh.dim;
-    let mut out = mesh.clone();
-    out.cells.clear();
-    let (mut input_cell, mut origin) = (Vec::new(), Vec::new());
-    let live: Vec<usize> = (0..w.cells.len()).filter(|&c| w.alive[c]).collect();
-    for &c in &live {
-        out.cells.extend_from_slice(&w.cells[c][..=d]);
-        if c < n {
-            input_cell.push(c);
-        } else {
-            input_cell.push(locate(base, base, &w.cells[c][..=d], &w.origin[c]));
-            summary.cells_added += 1;
-        }
-        summary.bad_cells_left += w.assessment[c].is_bad() as usize;
-        origin.push(std::mem::take(&mut w.origin[c]));
-    }
-    summary.cells_removed = (0..n).filter(|&c| !w.alive[c]).count();
+    let (cells, old, origin) = w.into_cells();
+    let input_cell = old
+        .iter()
+        .enumerate()
+        .map(|(i, o)| o.unwrap_or_else(|| locate(base, base, &cells[i * (d + 1)..(i + 1) * (d + 1)], &origin[i])))
+        .collect();
+    summary.cells_added = old.iter().filter(|o| o.is_none()).count();
+    summary.cells_removed = n - (old.len() - summary.cells_added);
+    let out = LinearMesh { cells, ..mesh.clone() };
     (Repaired { mesh: out, input_cell, summary }, origin)
+}
+
+/// The bulge samples of a mesh, their projections and the bulge of each facet.
+struct Measured {
+    samples: BulgeSamples,
+    projected: Vec<[f64; 3]>,
+    bulge: Vec<f64>,
+}
+
+impl Measured {
+    fn of<E>(
+        mesh: &LinearMesh,
+        measure: &mut impl FnMut(&LinearMesh, &BulgeSamples) -> Result<Vec<[f64; 3]>, E>,
+    ) -> Result<Measured, E> {
+        let samples = bulge_samples(mesh);
+        let projected = measure(mesh, &samples)?;
+        let bulge = facet_bulges(mesh, &samples, &projected);
+        Ok(Measured { samples, projected, bulge })
+    }
 }
 
 /// The cell among `candidates` (cells of `mesh`) that contains the centroid

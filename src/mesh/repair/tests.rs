@@ -5,6 +5,7 @@
 use std::collections::HashMap;
 
 use super::geom::{barycentric, facet_key, orient, FacetKey};
+use super::surface::SQUEEZE_FRACTION;
 use super::*;
 
 fn points(m: &LinearMesh, c: &[usize]) -> Vec<[f64; 3]> {
@@ -250,4 +251,91 @@ fn a_facet_bulging_toward_an_interior_vertex_is_left_to_the_solve() {
     let (m, _) = crate::mesh::validate_and_orient(&m).unwrap();
     assert!(bad_cells(&m, &[0.3]).is_empty());
     assert_eq!(repaired(&m, &[0.3]).summary, RepairSummary::default());
+}
+
+/// A patch of the cylinder r = 1 (tag 7) as the crankshaft's gmsh mesh has
+/// it: the facets (a, b, c) and (a, b, d) share a chord ab across 43° whose
+/// midpoint, once on the cylinder, comes within a few percent of c. Two
+/// tets on ab around an interior vertex x; the other boundary faces are
+/// planes (tag 1).
+fn cylinder_patch(c_angle: f64, d_angle: f64, d_z: f64) -> LinearMesh {
+    let p = |deg: f64, r: f64, z: f64| [r * deg.to_radians().cos(), r * deg.to_radians().sin(), z];
+    let x = [p(0.0, 1.0, 0.036), p(43.3, 1.0, 0.0), p(c_angle, 1.0, 0.0), p(d_angle, 1.0, d_z), p(22.0, 0.8, 0.05)];
+    let (a, b, c, d, o) = (0, 1, 2, 3, 4);
+    let mut m = tet_mesh(
+        &x,
+        &[[a, b, c, o], [a, b, o, d]],
+        &[[a, b, c], [a, b, d], [a, c, o], [b, c, o], [a, o, d], [b, o, d]],
+    );
+    m.facet_tags = vec![7, 7, 1, 1, 1, 1];
+    m
+}
+
+/// Samples on the cylinder (tag 7) go radially onto it; the others stay.
+fn onto_cylinder(_: &LinearMesh, s: &BulgeSamples) -> Result<Vec<[f64; 3]>, ()> {
+    Ok(s.points
+        .iter()
+        .zip(&s.entities)
+        .map(|(y, &e)| {
+            let r = if e == (2, 7) { y[0].hypot(y[1]) } else { 1.0 };
+            [y[0] / r, y[1] / r, y[2]]
+        })
+        .collect())
+}
+
+fn squeeze_of(m: &LinearMesh, f: [usize; 3]) -> f64 {
+    let s = bulge_samples(m);
+    let y = onto_cylinder(m, &s).unwrap();
+    surface::squeezes(m, &s, &y)[&facet_key(&f)].value
+}
+
+#[test]
+fn a_surface_edge_whose_facet_folds_once_curved_is_flipped() {
+    let m = cylinder_patch(21.8, 32.3, 0.103);
+    let (a, b, c, d) = (0, 1, 2, 3);
+    let before = squeeze_of(&m, [a, b, c]);
+    assert!(before > 0.9 && before < 1.0, "{before}");
+    let r = repair_with(&m, true, onto_cylinder).unwrap();
+    assert_eq!(r.summary.surface_flips, 1, "{:?}", r.summary);
+    let mut cyl: Vec<FacetKey> =
+        r.mesh.facets.chunks(3).zip(&r.mesh.facet_tags).filter(|(_, &t)| t == 7).map(|(f, _)| facet_key(f)).collect();
+    cyl.sort_unstable();
+    assert_eq!(cyl, vec![facet_key(&[a, c, d]), facet_key(&[b, c, d])]);
+    // The boundary is the new facets and the planes; the cells are valid.
+    let mut facets: Vec<FacetKey> = r.mesh.facets.chunks(3).map(facet_key).collect();
+    facets.sort_unstable();
+    assert_eq!(boundary(&r.mesh), facets);
+    for c in r.mesh.cells.chunks(4) {
+        assert!(orient(3, &points(&r.mesh, c)) > 0.0);
+    }
+    assert_eq!((r.summary.cells_removed, r.summary.cells_added, r.input_cell.len()), (2, 2, 2));
+    assert!(r.input_cell.iter().all(|&i| i < 2));
+    let after = squeeze_of(&r.mesh, [a, c, d]).max(squeeze_of(&r.mesh, [b, c, d]));
+    assert!(after < SQUEEZE_FRACTION, "{after}");
+    // With ab on a feature curve it stays.
+    let mut m = m;
+    (m.feature_edges, m.feature_edge_tags) = (vec![a, b], vec![3]);
+    assert_eq!(repair_with(&m, true, onto_cylinder).unwrap().summary.surface_flips, 0);
+}
+
+#[test]
+fn a_surface_flip_that_would_not_lower_the_squeeze_is_refused() {
+    // c before a, d between a and b: the flip is valid, but the new chord
+    // cd, across 45°, would squeeze a c d more.
+    let m = cylinder_patch(-15.0, 30.0, 0.05);
+    let (a, b, c, d) = (0, 1, 2, 3);
+    let before = squeeze_of(&m, [a, b, c]).max(squeeze_of(&m, [a, b, d]));
+    assert!(before > SQUEEZE_FRACTION);
+    let s = bulge_samples(&m);
+    let y = onto_cylinder(&m, &s).unwrap();
+    let origin = vec![vec![0], vec![1]];
+    let bulge = facet_bulges(&m, &s, &y);
+    let squeeze = surface::squeezes(&m, &s, &y);
+    let round = surface::flip_round(&m, &bulge, &squeeze, origin, &Default::default()).expect("a valid flip");
+    assert_eq!(round.flips.len(), 1);
+    let after = squeeze_of(&round.mesh, [a, c, d]).max(squeeze_of(&round.mesh, [b, c, d]));
+    assert!(after >= before, "{after} < {before}");
+    let r = repair_with(&m, true, onto_cylinder).unwrap();
+    assert_eq!(r.summary.surface_flips, 0, "{:?}", r.summary);
+    assert_eq!(r.mesh, m);
 }
