@@ -2,7 +2,7 @@
 //! stay valid once curved with their vertices fixed are flipped away or split.
 //!
 //! Three steps ([`crate::curve::CurveOptions`]: the first with
-//! `remove_caps`, the other two with `repair`):
+//! `remove_caps`, the others with `repair`):
 //!
 //! 1. [`caps`]: boundary caps (tets with two faces on one smooth surface,
 //!    less than 45° apart) are removed, which flips their surface edge:
@@ -27,7 +27,11 @@
 //!    is smooth there and bulges into the cell, and a flip would keep the
 //!    surface edge the cap's two faces share, along which curving squeezes
 //!    whatever cells are there (unless caps are kept: then only flips). The
-//!    new facets are measured again before the next sweep.
+//!    new facets are measured again before the next sweep. Between the caps
+//!    and the flips, [`surface`]: a boundary edge whose facet would fold on
+//!    its surface once curved is flipped to the other diagonal of its two
+//!    facets (the new facets are measured, and a flip that does not help is
+//!    refused), at most [`MAX_ROUNDS`] rounds.
 //! 3. [`split`]: an interior edge opposite a vertex where a triangle of the
 //!    mesh has two boundary edges on a smooth boundary (the cells between
 //!    that triangle and the boundary would be squeezed flat there) is split

@@ -133,12 +133,22 @@ pub fn flip_round(
     }
     let features: HashSet<[usize; 2]> =
         mesh.feature_edges.chunks_exact(2).map(|e| [e[0].min(e[1]), e[0].max(e[1])]).collect();
-    let mut worst: Vec<(f64, [usize; 2])> = Vec::new();
-    for q in squeeze.values().filter(|q| q.value > SQUEEZE_FRACTION) {
-        if !refused.contains(&q.edge) && !worst.iter().any(|w| w.1 == q.edge) {
-            worst.push((q.value, q.edge));
-        }
-    }
+    // The edges to flip, worst first (ties by edge: the order is the same
+    // whatever the hash maps' order).
+    let candidates: HashSet<[usize; 2]> =
+        squeeze.values().filter(|q| q.value > SQUEEZE_FRACTION && !refused.contains(&q.edge)).map(|q| q.edge).collect();
+    let facet_squeeze = |f: FacetKey| squeeze.get(&f).map_or(f64::NEG_INFINITY, |q| q.value);
+    let mut worst: Vec<(f64, [usize; 2])> = candidates
+        .into_iter()
+        .filter_map(|e| {
+            let sides = at_edge.get(&e)?;
+            let v = sides
+                .iter()
+                .map(|&(o, _)| facet_squeeze(facet_key(&[e[0], e[1], o])))
+                .fold(f64::NEG_INFINITY, f64::max);
+            Some((v, e))
+        })
+        .collect();
     worst.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
     let crit = Criteria::new(mesh, bulge);
     let mut w = Work::new(mesh, &crit, origin);
