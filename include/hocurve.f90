@@ -25,7 +25,7 @@ module hocurve
 
   ! Version of the library these bindings are for (hoc_version gives the library's)
   integer(c_int), parameter, public :: HOCURVE_VERSION_MAJOR = 0
-  integer(c_int), parameter, public :: HOCURVE_VERSION_MINOR = 3
+  integer(c_int), parameter, public :: HOCURVE_VERSION_MINOR = 4
   integer(c_int), parameter, public :: HOCURVE_VERSION_PATCH = 0
   ! Defaults shared by every interface
   integer(c_int), parameter, public :: HOC_DEFAULT_INCREMENTS = 10
