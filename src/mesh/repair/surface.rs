@@ -59,7 +59,7 @@ pub fn squeezes(mesh: &LinearMesh, samples: &BulgeSamples, projected: &[[f64; 3]
         let f = &mesh.facets[3 * k..3 * k + 3];
         let Some(&o) = f.iter().find(|&&v| v != e[0] && v != e[1]) else { continue };
         let (a, b, c) = (mesh.vertex(e[0]), mesh.vertex(e[1]), mesh.vertex(o));
-        // Unit vector in the facet's plane, normal to ab, toward c.
+        // In the facet's plane, normal to ab, from ab to c (length h).
         let t = sub(b, a);
         let ac = sub(c, a);
         let s = dot(ac, t) / dot(t, t);
