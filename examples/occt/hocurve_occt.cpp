@@ -147,10 +147,9 @@ int main(int argc, char **argv) {
     // A run that cannot make every cell valid ("an element became
     // inverted") is tried again with what the command line left to its
     // default: the closest-point placement (it puts boundary nodes at other
-    // places of the CAD; on U_Joint_2 at h = 17.5, p = 2 only the mesh from
-    // it can be made valid), then the caps kept (the cap removal can leave cells that
-    // no curving keeps valid: SampleCrankshaft4A at h = 56, p = 3 and at
-    // h = 112, p = 2). Each retry goes to stderr and to the report.
+    // places of the CAD), then the caps kept (the cap removal can leave cells
+    // that no curving keeps valid: SampleCrankshaft4A at h = 112, p = 2 and
+    // 3). Each retry goes to stderr and to the report.
     struct Retry {
       std::string change, after;
     };
