@@ -175,7 +175,7 @@ pub fn repair_with<E>(
     let mut refused = HashSet::new();
     for _ in 0..MAX_ROUNDS {
         let squeeze = surface::squeezes(&cur, &m.samples, &m.projected);
-        let Some(round) = surface::flip_round(&cur, &m.bulge, &squeeze, origin.clone(), &refused) else { break };
+        let Some(round) = surface::flip_round(&cur, &m.bulge, &squeeze, &origin, &refused) else { break };
         let next = Measured::of(&round.mesh, &mut measure)?;
         let after = surface::squeezes(&round.mesh, &next.samples, &next.projected);
         let worse: Vec<[usize; 2]> =

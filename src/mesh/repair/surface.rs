@@ -118,7 +118,7 @@ pub fn flip_round(
     mesh: &LinearMesh,
     bulge: &[f64],
     squeeze: &HashMap<FacetKey, Squeeze>,
-    origin: Vec<Vec<usize>>,
+    origin: &[Vec<usize>],
     refused: &HashSet<[usize; 2]>,
 ) -> Option<Round> {
     if mesh.dim != 3 {
@@ -149,9 +149,12 @@ pub fn flip_round(
             Some((v, e))
         })
         .collect();
+    if worst.is_empty() {
+        return None;
+    }
     worst.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
     let crit = Criteria::new(mesh, bulge);
-    let mut w = Work::new(mesh, &crit, origin);
+    let mut w = Work::new(mesh, &crit, origin.to_vec());
     let (mut facets, mut tags) = (mesh.facets.clone(), mesh.facet_tags.clone());
     let mut removed_facets = HashSet::new();
     let mut touched = HashSet::new();

@@ -331,7 +331,7 @@ fn a_surface_flip_that_would_not_lower_the_squeeze_is_refused() {
     let origin = vec![vec![0], vec![1]];
     let bulge = facet_bulges(&m, &s, &y);
     let squeeze = surface::squeezes(&m, &s, &y);
-    let round = surface::flip_round(&m, &bulge, &squeeze, origin, &Default::default()).expect("a valid flip");
+    let round = surface::flip_round(&m, &bulge, &squeeze, &origin, &Default::default()).expect("a valid flip");
     assert_eq!(round.flips.len(), 1);
     let after = squeeze_of(&round.mesh, [a, c, d]).max(squeeze_of(&round.mesh, [b, c, d]));
     assert!(after >= before, "{after} < {before}");
