@@ -133,26 +133,10 @@ pub fn flip_round(
     }
     let features: HashSet<[usize; 2]> =
         mesh.feature_edges.chunks_exact(2).map(|e| [e[0].min(e[1]), e[0].max(e[1])]).collect();
-    // The edges to flip, worst first (ties by edge: the order is the same
-    // whatever the hash maps' order).
-    let candidates: HashSet<[usize; 2]> =
-        squeeze.values().filter(|q| q.value > SQUEEZE_FRACTION && !refused.contains(&q.edge)).map(|q| q.edge).collect();
-    let facet_squeeze = |f: FacetKey| squeeze.get(&f).map_or(f64::NEG_INFINITY, |q| q.value);
-    let mut worst: Vec<(f64, [usize; 2])> = candidates
-        .into_iter()
-        .filter_map(|e| {
-            let sides = at_edge.get(&e)?;
-            let v = sides
-                .iter()
-                .map(|&(o, _)| facet_squeeze(facet_key(&[e[0], e[1], o])))
-                .fold(f64::NEG_INFINITY, f64::max);
-            Some((v, e))
-        })
-        .collect();
+    let worst = worst_first(squeeze, &at_edge, refused);
     if worst.is_empty() {
         return None;
     }
-    worst.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
     let crit = Criteria::new(mesh, bulge);
     let mut w = Work::new(mesh, &crit, origin.to_vec());
     let (mut facets, mut tags) = (mesh.facets.clone(), mesh.facet_tags.clone());
@@ -194,4 +178,31 @@ pub fn flip_round(
         }
     }
     Some(Round { mesh: out, old, origin, flips })
+}
+
+/// The edges of the facets whose squeeze passes [`SQUEEZE_FRACTION`], but
+/// those in `refused`, with the larger squeeze of the facets on their two
+/// sides (`at_edge`: each edge's facets by opposite vertex), worst first;
+/// ties by edge, so the order is the same whatever the hash maps' order.
+fn worst_first(
+    squeeze: &HashMap<FacetKey, Squeeze>,
+    at_edge: &HashMap<[usize; 2], Vec<(usize, i32)>>,
+    refused: &HashSet<[usize; 2]>,
+) -> Vec<(f64, [usize; 2])> {
+    let candidates: HashSet<[usize; 2]> =
+        squeeze.values().filter(|q| q.value > SQUEEZE_FRACTION && !refused.contains(&q.edge)).map(|q| q.edge).collect();
+    let facet_squeeze = |f: FacetKey| squeeze.get(&f).map_or(f64::NEG_INFINITY, |q| q.value);
+    let mut worst: Vec<(f64, [usize; 2])> = candidates
+        .into_iter()
+        .filter_map(|e| {
+            let sides = at_edge.get(&e)?;
+            let v = sides
+                .iter()
+                .map(|&(o, _)| facet_squeeze(facet_key(&[e[0], e[1], o])))
+                .fold(f64::NEG_INFINITY, f64::max);
+            Some((v, e))
+        })
+        .collect();
+    worst.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+    worst
 }
