@@ -164,6 +164,17 @@ int main(void) {
   EXPECT("set_progress: NULL handle", hoc_mesh_set_progress(NULL, progress_cancel, NULL), NULL, NULLP);
   EXPECT("set_threads: NULL handle", hoc_mesh_set_threads(NULL, 1), NULL, NULLP);
   EXPECT("set_remove_caps: NULL handle", hoc_mesh_set_remove_caps(NULL, 1), NULL, NULLP);
+  EXPECT("set_retry: NULL handle", hoc_mesh_set_retry(NULL, 1), NULL, NULLP);
+  {
+    int kept = -1;
+    EXPECT("retry: NULL handle", hoc_mesh_retry(NULL, &kept, NULL, 0, NULL), NULL, NULLP);
+    EXPECT("retry: caps_kept NULL", hoc_mesh_retry(mesh, NULL, NULL, 0, NULL), mesh, NULLP);
+    /* Before any run: not retried, an empty message of length 0. */
+    char msg[4] = "xyz";
+    size_t len = 99;
+    CHECK_OK(mesh, hoc_mesh_retry(mesh, &kept, &len, sizeof msg, msg));
+    CHECK(kept == 0 && len == 0 && msg[0] == '\0', "retry before a run: kept %d, len %zu, msg '%s'", kept, len, msg);
+  }
   EXPECT("get_input_cells: NULL handle", hoc_mesh_get_input_cells(NULL, 0, NULL), NULL, NULLP);
   EXPECT("set_order: NULL handle", hoc_mesh_set_order(NULL, 2, HOC_SPACING_OPTIMAL), NULL, NULLP);
   EXPECT("set_material: NULL handle", hoc_mesh_set_material(NULL, HOC_MATERIAL_LINEAR_ELASTIC, 1, 0.3), NULL, NULLP);

@@ -58,6 +58,9 @@ program t401_curve_f
   integer(c_int) :: st
   integer, target :: calls
   integer :: i, j, c, f, a, b, on_inner, on_outer
+  integer(c_int) :: caps_kept
+  integer(c_size_t) :: message_len
+  character(kind=c_char) :: message(64)
 
   do i = 0, nr
     do j = 0, nt - 1
@@ -123,8 +126,15 @@ program t401_curve_f
     error stop 1
   end if
 
+  call check(hoc_mesh_set_retry(mesh, 1_c_int), "set_retry")
   call check(hoc_mesh_run_increments(mesh, 1_c_int), "run_increments")
   call check(hoc_mesh_quality(mesh, q), "quality")
+  ! A 2D mesh has no caps: the run is made once.
+  call check(hoc_mesh_retry(mesh, caps_kept, message_len, int(size(message), c_size_t), message), "retry")
+  if (caps_kept /= 0 .or. message_len /= 0 .or. message(1) /= c_null_char) then
+    print *, "retry: caps_kept", caps_kept, " message_len", message_len
+    error stop 1
+  end if
   call check(hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, n_nodes, x), "get_nodes")
   call count_on_circles(x, on_inner, on_outer)
   if (q%n_invalid /= 0 .or. q%min_q3 <= 0) then

@@ -372,6 +372,8 @@ int main(void) {
             "n_threads must be >= 0");
   ON_HANDLE("set_remove_caps: 2", mesh, 3, hoc_mesh_set_remove_caps(mesh, 2), HOC_ERROR_INVALID_ARGUMENT,
             "remove must be 0 or 1");
+  ON_HANDLE("set_retry: 2", mesh, 3, hoc_mesh_set_retry(mesh, 2), HOC_ERROR_INVALID_ARGUMENT,
+            "enabled must be 0 or 1");
   ON_HANDLE("set_static_condensation: -1", mesh, 3, hoc_mesh_set_static_condensation(mesh, -1),
             HOC_ERROR_INVALID_ARGUMENT, "enabled must be 0 or 1");
   ON_HANDLE("set_optimize: 2", mesh, 3, hoc_mesh_set_optimize(mesh, 2), HOC_ERROR_INVALID_ARGUMENT,

@@ -262,6 +262,27 @@ module hocurve
       integer(c_int) :: status
     end function hoc_mesh_set_remove_caps
 
+    function hoc_mesh_set_retry(mesh, enabled) bind(C, name="hoc_mesh_set_retry") result(status)
+      import :: c_int, c_ptr
+      type(c_ptr), value :: mesh
+      integer(c_int), value :: enabled
+      integer(c_int) :: status
+    end function hoc_mesh_set_retry
+
+    !> caps_kept: 1 if the last run was made again with the caps kept;
+    !> message_len: the first run's error message's length; message (len
+    !> bytes) gets that message, NUL-terminated.
+    function hoc_mesh_retry(mesh, caps_kept, message_len, len, message) bind(C, name="hoc_mesh_retry") &
+        result(status)
+      import :: c_int, c_ptr, c_size_t, c_char
+      type(c_ptr), value :: mesh
+      integer(c_int), intent(out) :: caps_kept
+      integer(c_size_t), intent(out) :: message_len
+      integer(c_size_t), value :: len
+      character(kind=c_char), intent(out) :: message(*)
+      integer(c_int) :: status
+    end function hoc_mesh_retry
+
     function hoc_mesh_set_repair(mesh, enabled) bind(C, name="hoc_mesh_set_repair") result(status)
       import :: c_int, c_ptr
       type(c_ptr), value :: mesh
@@ -513,7 +534,8 @@ module hocurve
 
   public :: hoc_mesh_create, hoc_mesh_destroy, hoc_mesh_set_boundary, hoc_mesh_set_feature_edges, &
             hoc_mesh_set_projector, hoc_mesh_set_progress, hoc_mesh_set_linear_solver, &
-            hoc_mesh_set_threads, hoc_mesh_set_remove_caps, hoc_mesh_set_repair, hoc_mesh_get_input_cells, &
+            hoc_mesh_set_threads, hoc_mesh_set_remove_caps, hoc_mesh_set_retry, hoc_mesh_retry, &
+            hoc_mesh_set_repair, hoc_mesh_get_input_cells, &
             hoc_mesh_set_order, hoc_mesh_repair_summary, &
             hoc_mesh_set_material, hoc_mesh_set_formulation, hoc_mesh_set_newton, hoc_mesh_set_fibres, &
             hoc_mesh_set_adaptive_stepping, hoc_mesh_set_static_condensation, hoc_mesh_run_increments, &

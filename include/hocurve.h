@@ -697,6 +697,36 @@ HocStatus hoc_mesh_set_threads(HocMesh *mesh, int n_threads);
 HocStatus hoc_mesh_set_remove_caps(HocMesh *mesh, int remove);
 
 /**
+ * Whether a run that removed caps (hoc_mesh_set_remove_caps, or the
+ * repair's) and still ends with a certified-invalid cell is made once more
+ * with the caps kept (default 1). Removing a cap turns its interior chord
+ * into a boundary edge, which on a coarse mesh under strong curvature can
+ * bulge through the cells below it. hoc_mesh_retry says when it happened.
+ * Takes effect at the next run.
+ *
+ * @param[in,out] mesh the handle
+ * @param[in] enabled 1 on, 0 off
+ * @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
+ */
+HocStatus hoc_mesh_set_retry(HocMesh *mesh, int enabled);
+
+/**
+ * Whether the last successful run was made a second time with the caps
+ * kept (hoc_mesh_set_retry), and the error that ended its first run.
+ * Before any run, and after a run made once, caps_kept is 0 and the message "".
+ *
+ * @param[in] mesh the handle
+ * @param[out] caps_kept 1 if the run was made again with the caps kept, else 0
+ * @param[out] message_len NULL, or the length of the whole message in bytes
+ *   (without its NUL): call with message NULL first to size the buffer
+ * @param[in] len bytes available at message (with message NULL: ignored)
+ * @param[out] message NULL, or the first run's error message, NUL-terminated
+ *   and cut to len - 1 bytes (len 0: nothing written)
+ * @return HOC_OK or HOC_ERROR_NULL_POINTER
+ */
+HocStatus hoc_mesh_retry(const HocMesh *mesh, int *caps_kept, size_t *message_len, size_t len, char *message);
+
+/**
  * Whether each run repairs the linear mesh first (default 1). A cell whose
  * vertices all lie on one surface that bulges into the domain (e.g. a tet
  * inside the shell between a sphere cavity and its straight facets), or
@@ -860,8 +890,10 @@ HocStatus hoc_mesh_run_increments(HocMesh *mesh, int increments);
 HocStatus hoc_mesh_quality(const HocMesh *mesh, HocQuality *out);
 
 /**
- * What the repair did: the boundary caps removed, and the flips of the last
- * successful run (zero before a run, or when the run did not repair).
+ * What the repair did: the boundary caps removed (by the last successful
+ * run, which may have kept them, see hoc_mesh_retry; before a run, those
+ * the run will remove), and the flips of the last successful run (zero
+ * before a run, or when the run did not repair).
  *
  * @param[in] mesh the handle
  * @param[out] out the counts

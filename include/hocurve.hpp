@@ -32,6 +32,7 @@
 #include <exception>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -225,6 +226,8 @@ class Mesh {
   void set_threads(int n_threads) { check(hoc_mesh_set_threads(mesh_, n_threads), mesh_); }
   /** Remove boundary caps before curving (default true). */
   void set_remove_caps(bool remove) { check(hoc_mesh_set_remove_caps(mesh_, remove ? 1 : 0), mesh_); }
+  /** Run again with the caps kept when a run that removed caps ends with an invalid cell (default on). */
+  void set_retry(bool enabled) { check(hoc_mesh_set_retry(mesh_, enabled ? 1 : 0), mesh_); }
   /** Repair the linear mesh at each run: flip away cells that cannot stay valid once curved (default true). */
   void set_repair(bool enabled) { check(hoc_mesh_set_repair(mesh_, enabled ? 1 : 0), mesh_); }
   void set_order(int order, HocNodeSpacing spacing = HOC_SPACING_OPTIMAL) {
@@ -279,6 +282,17 @@ class Mesh {
     HocOptimization o{};
     check(hoc_mesh_optimization(mesh_, &o), mesh_);
     return o;
+  }
+  /** When the last run was made again with the caps kept: the error that ended its first run. */
+  std::optional<std::string> caps_kept_after() const {
+    int kept = 0;
+    std::size_t len = 0;
+    check(hoc_mesh_retry(mesh_, &kept, &len, 0, nullptr), mesh_);
+    if (!kept) return std::nullopt;
+    std::string message(len + 1, '\0');
+    check(hoc_mesh_retry(mesh_, &kept, &len, message.size(), message.data()), mesh_);
+    message.resize(len);
+    return message;
   }
   /** Boundary caps removed and the last run's repair flips. */
   HocRepair repair_summary() const {

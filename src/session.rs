@@ -12,8 +12,9 @@
 //! change, and every run curves it from there.
 
 use std::borrow::Cow;
+use std::time::Instant;
 
-use crate::curve::{curve_prepared, validate_options, CurveOptions, CurveReport, Formulation, Prepared, Progress};
+use crate::curve::{run_retrying, validate_options, CurveOptions, CurveReport, Formulation, Prepared, Progress};
 use crate::geometry::Projector;
 pub use crate::material::MaterialModel;
 use crate::mesh::{validate_and_orient, HighOrderMesh, LinearMesh};
@@ -209,6 +210,13 @@ impl Session {
         self.reset(self.input.clone(), opts)
     }
 
+    /// Whether a run that removed caps and ends with an invalid cell is made
+    /// again with the caps kept (default true; see
+    /// [`CurveOptions::retry_keep_caps`]). Takes effect at the next run.
+    pub fn set_retry_keep_caps(&mut self, retry: bool) {
+        self.opts.retry_keep_caps = retry;
+    }
+
     /// Whether the linear mesh is repaired at each run (default true; see
     /// [`CurveOptions::repair`]). Takes effect at the next run.
     pub fn set_repair(&mut self, repair: bool) {
@@ -349,7 +357,11 @@ impl Session {
             None => &mut always,
         };
         let (prepared, pool) = (&self.prepared, self.pool.as_ref().expect("pool was just built"));
-        let curved = pool.install(|| curve_prepared(prepared, projector, &opts, &mut |p: &Progress| progress(p)))?;
+        let (input, straight_tags) = (&self.input, &self.straight_tags[..]);
+        let reprepare = |o: &CurveOptions| prepare(input, o, straight_tags);
+        let curved = pool.install(|| {
+            run_retrying(prepared, &reprepare, projector, &opts, &mut |p: &Progress| progress(p), Instant::now())
+        })?;
         self.mesh = curved.mesh;
         self.quality = curved.report.quality.clone();
         self.cell_quality = curved.cell_quality;

@@ -313,3 +313,113 @@ fn a_surface_flip_makes_valid_a_sphere_cavity_the_elastic_stage_cannot_curve() {
         hoc_mesh_destroy(&mut h);
     }
 }
+
+/// `torus_cavity_coarse_gmsh.msh`: gmsh's mesh of the box [-1, 1]^3 less a
+/// torus (R = 0.6, r = 0.3 about z), h = 0.5 with 4 elements per turn of
+/// curvature (`scripts/gen_corpus.py`, 579 tets). With its caps removed, the
+/// chords that become boundary edges bulge through the cells below them at
+/// p = 2 and no stage makes the mesh valid; with the caps kept it curves.
+fn coarse_torus() -> (LinearMesh, ShapeProjector) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/torus_cavity_coarse_gmsh.msh");
+    let mut mesh = hocurve::io::gmsh::to_linear_mesh(&hocurve::io::gmsh::read_msh(&path).unwrap()).unwrap();
+    let mut projector = ShapeProjector::new();
+    projector.insert(7, Shape::parse("torus:0,0,0,0.6,0.3").unwrap());
+    mesh.retain_tags(|d, t| projector.get(d, t).is_some());
+    (mesh, projector)
+}
+
+/// Every node held on the torus (tag 7) is on it.
+fn assert_on_torus(mesh: &hocurve::mesh::HighOrderMesh) {
+    let mut held = 0;
+    for n in 0..mesh.n_nodes() {
+        if let hocurve::mesh::NodeConstraint::OnEntity { tag: 7, .. } = mesh.constraint[n] {
+            let x = &mesh.coords[3 * n..3 * n + 3];
+            let d = (((x[0] * x[0] + x[1] * x[1]).sqrt() - 0.6).powi(2) + x[2] * x[2]).sqrt() - 0.3;
+            assert!(d.abs() < 1e-9, "node {n} is {d:e} off the torus");
+            held += 1;
+        }
+    }
+    assert!(held > 0);
+}
+
+#[test]
+fn a_run_that_removed_caps_and_ends_invalid_is_made_again_with_the_caps_kept() {
+    let (mesh, projector) = coarse_torus();
+    let c = curve(&mesh, &projector, &CurveOptions::default(), &mut |_| true).unwrap();
+    let r = &c.report;
+    let first = r.caps_kept_after.as_deref().expect("the run was made once");
+    assert!(first.starts_with("invalid element: cell ") && first.contains("after optimisation"), "{first}");
+    // The report is the second run's: no cap removed, every cell valid.
+    assert_eq!((r.removed_caps, r.repair.surface_caps), (0, 0));
+    assert_eq!((r.quality.n_certified_invalid, r.quality.n_uncertain), (0, 0));
+    assert!(r.quality.certified_min_q3 > 0.0);
+    assert_eq!(r.input_cell.len(), c.mesh.n_cells());
+    assert_on_torus(&c.mesh);
+}
+
+#[test]
+fn the_c_abi_makes_the_run_again_with_the_caps_kept_unless_told_not_to() {
+    use hocurve::ffi::*;
+    let (mesh, _) = coarse_torus();
+    let (m, _) = validate_and_orient(&mesh).unwrap();
+    let cells: Vec<i64> = m.cells.iter().map(|&v| v as i64).collect();
+    let facets: Vec<i64> = m.facets.iter().map(|&v| v as i64).collect();
+    unsafe extern "C" fn torus(
+        _: *mut std::ffi::c_void,
+        _: std::ffi::c_int,
+        _: std::ffi::c_int,
+        n: usize,
+        points: *const f64,
+        out: *mut f64,
+    ) -> std::ffi::c_int {
+        let shape = Shape::parse("torus:0,0,0,0.6,0.3").unwrap();
+        for i in 0..n {
+            let p = [*points.add(3 * i), *points.add(3 * i + 1), *points.add(3 * i + 2)];
+            let q = shape.closest_point(p);
+            for k in 0..3 {
+                *out.add(3 * i + k) = q[k];
+            }
+        }
+        0
+    }
+    unsafe {
+        let mut h = std::ptr::null_mut();
+        assert_eq!(hoc_mesh_create(3, m.n_vertices(), m.coords.as_ptr(), m.n_cells(), cells.as_ptr(), &mut h), HOC_OK);
+        assert_eq!(hoc_mesh_set_boundary(h, m.n_facets(), facets.as_ptr(), m.facet_tags.as_ptr()), HOC_OK);
+        assert_eq!(hoc_mesh_set_projector(h, Some(torus), std::ptr::null_mut()), HOC_OK);
+        assert_eq!(hoc_mesh_set_order(h, 2, HOC_SPACING_OPTIMAL), HOC_OK);
+        let mut caps = HocRepair::default();
+        assert_eq!(hoc_mesh_repair_summary(h, &mut caps), HOC_OK);
+        assert!(caps.removed_caps > 0, "the preparation removes caps");
+        assert_eq!(hoc_mesh_run_increments(h, 10), HOC_OK);
+        let (mut kept, mut len) = (0, 0usize);
+        let mut message = [0 as std::ffi::c_char; 16];
+        assert_eq!(hoc_mesh_retry(h, &mut kept, &mut len, message.len(), message.as_mut_ptr()), HOC_OK);
+        assert_eq!(kept, 1);
+        assert!(len > 15);
+        // Cut to the buffer, NUL-terminated.
+        let cut = std::ffi::CStr::from_ptr(message.as_ptr()).to_str().unwrap();
+        assert_eq!(cut, "invalid element");
+        let mut s = HocRepair::default();
+        assert_eq!(hoc_mesh_repair_summary(h, &mut s), HOC_OK);
+        assert_eq!(s.removed_caps, 0, "the run that stood kept the caps");
+        let mut q = std::mem::MaybeUninit::<HocQuality>::uninit();
+        assert_eq!(hoc_mesh_quality(h, q.as_mut_ptr()), HOC_OK);
+        assert_eq!(q.assume_init().n_certified_invalid, 0);
+        let mut n_nodes = 0;
+        assert_eq!(hoc_mesh_node_count(h, &mut n_nodes), HOC_OK);
+        let mut before = vec![0.0; 3 * n_nodes];
+        assert_eq!(hoc_mesh_get_nodes(h, HOC_ORDERING_NATIVE, n_nodes, before.as_mut_ptr()), HOC_OK);
+        // Without the retry the run fails, and the mesh stays as it was.
+        assert_eq!(hoc_mesh_set_retry(h, 0), HOC_OK);
+        assert_eq!(hoc_mesh_run_increments(h, 10), HOC_ERROR_INVALID_ELEMENT);
+        let err = std::ffi::CStr::from_ptr(hoc_mesh_last_error(h)).to_str().unwrap();
+        assert!(err.contains("after optimisation") && !err.contains("second run"), "{err}");
+        let mut after = vec![0.0; 3 * n_nodes];
+        assert_eq!(hoc_mesh_get_nodes(h, HOC_ORDERING_NATIVE, n_nodes, after.as_mut_ptr()), HOC_OK);
+        assert_eq!(before, after);
+        assert_eq!(hoc_mesh_retry(h, &mut kept, &mut len, 0, std::ptr::null_mut()), HOC_OK);
+        assert_eq!(kept, 1, "the last successful run's retry");
+        hoc_mesh_destroy(&mut h);
+    }
+}

@@ -4,7 +4,7 @@
 //
 //   hocurve-occt MODEL.step|.brep --order P [--mesh-size H] [--curvature N] [--formulation F]
 //                [--poisson NU] [--increments N] [--threads T] [--placement parametric|closest]
-//                [--adaptive on|off] [--optimize on|off] [--caps remove|keep]
+//                [--adaptive on|off] [--optimize on|off] [--caps remove|keep] [--retry on|off]
 //                --output OUT.msh|.vtu [--report R.json]
 #include "occt_pipeline.hpp"
 
@@ -22,7 +22,7 @@ void usage() {
   std::cerr << "usage: hocurve-occt MODEL.step|.brep --order P [--mesh-size H] [--curvature N] [--formulation "
                "linear|ile|iil|cil|nonlinear] [--poisson NU] [--increments N] [--threads T] "
                "[--placement parametric|closest] [--adaptive on|off] [--optimize on|off] [--caps remove|keep] "
-               "--output OUT.msh|.vtu [--report R.json]\n";
+               "[--retry on|off] --output OUT.msh|.vtu [--report R.json]\n";
 }
 
 HocFormulation parse_formulation(const std::string &s) {
@@ -71,10 +71,10 @@ std::string solves_json(const hocurve::Mesh &mesh) {
 
 int main(int argc, char **argv) {
   std::string model, output, report, formulation = "ile", placement = "parametric", adaptive = "on", optimize = "on",
-              caps = "remove";
+              caps = "remove", retry = "on";
   int order = 0, increments = 1, threads = 0, per_2pi = 12;
   double h = 0.0, poisson = 0.3;
-  bool placement_given = false, caps_given = false;
+  bool placement_given = false;
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
     auto value = [&]() -> std::string {
@@ -94,7 +94,8 @@ int main(int argc, char **argv) {
     else if (a == "--placement") placement = value(), placement_given = true;
     else if (a == "--adaptive") adaptive = value();
     else if (a == "--optimize") optimize = value();
-    else if (a == "--caps") caps = value(), caps_given = true;
+    else if (a == "--caps") caps = value();
+    else if (a == "--retry") retry = value();
     else if (a == "--output") output = value();
     else if (a == "--report") report = value();
     else if (a == "-h" || a == "--help") {
@@ -108,7 +109,7 @@ int main(int argc, char **argv) {
   }
   if (model.empty() || output.empty() || order < 1 || (placement != "parametric" && placement != "closest") ||
       (adaptive != "on" && adaptive != "off") || (optimize != "on" && optimize != "off") ||
-      (caps != "remove" && caps != "keep")) {
+      (caps != "remove" && caps != "keep") || (retry != "on" && retry != "off")) {
     usage();
     return 2;
   }
@@ -141,36 +142,38 @@ int main(int argc, char **argv) {
       if (adaptive == "off") mesh.set_adaptive_stepping(0);
       if (optimize == "off") mesh.set_optimize(false);
       if (caps == "keep") mesh.set_remove_caps(false);
+      if (retry == "off") mesh.set_retry(false);
       mesh.run_increments(increments);
       return mesh;
     };
     // A run that cannot make every cell valid ("an element became
-    // inverted") is tried again with what the command line left to its
-    // default: the closest-point placement (it puts boundary nodes at other
-    // places of the CAD), then the caps kept (the cap removal can leave cells
-    // that no curving keeps valid: SampleCrankshaft4A at h = 112, p = 2 and
-    // 3). Each retry goes to stderr and to the report.
+    // inverted") is tried again with the closest-point placement when the
+    // command line left the placement to its default and --retry is on (it puts boundary
+    // nodes at other places of the CAD). The library itself makes a run
+    // that removed caps once more with the caps kept (SampleCrankshaft4A
+    // at h = 112, p = 2 and 3 needs that); both go to stderr and the report.
     struct Retry {
       std::string change, after;
     };
     std::vector<Retry> retries;
-    std::vector<std::pair<std::string, std::function<void()>>> changes;
-    const std::string placement0 = placement, caps0 = caps;
-    if (!placement_given && placement == "parametric")
-      changes.push_back({"placement closest", [&] { placement = "closest", caps = caps0; }});
-    if (!caps_given && caps == "remove")
-      changes.push_back({"caps keep", [&] { placement = placement0, caps = "keep"; }});
     std::optional<hocurve::Mesh> curved;
-    for (std::size_t k = 0;; ++k) {
+    for (;;) {
       try {
         curved.emplace(curve());
         break;
       } catch (const hocurve::Error &e) {
-        if (k == changes.size() || e.status() != HOC_ERROR_INVALID_ELEMENT) throw;
-        std::fprintf(stderr, "hocurve-occt: %s\nhocurve-occt: trying again with %s\n", e.what(), changes[k].first.c_str());
-        retries.push_back({changes[k].first, e.what()});
-        changes[k].second();
+        if (placement_given || placement != "parametric" || retry == "off" ||
+            e.status() != HOC_ERROR_INVALID_ELEMENT)
+          throw;
+        std::fprintf(stderr, "hocurve-occt: %s\nhocurve-occt: trying again with placement closest\n", e.what());
+        retries.push_back({"placement closest", e.what()});
+        placement = "closest";
       }
+    }
+    if (const auto first = curved->caps_kept_after()) {
+      std::fprintf(stderr, "hocurve-occt: the run was made again with the caps kept after: %s\n", first->c_str());
+      retries.push_back({"caps keep", *first});
+      caps = "keep";
     }
     hocurve::Mesh &mesh = *curved;
     auto t_curve = std::chrono::steady_clock::now();

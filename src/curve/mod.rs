@@ -104,6 +104,13 @@ pub struct CurveOptions {
     /// with two faces on one smooth surface, which no curving keeps valid
     /// (see [`crate::mesh::caps`]). The curved mesh then has fewer cells.
     pub remove_caps: bool,
+    /// When caps were removed (`remove_caps`, or the repair's caps) and the
+    /// run still ends with a certified-invalid cell, run once more from the
+    /// same linear mesh with the caps kept (default on): removing a cap turns
+    /// its interior chord into a boundary edge, and on a coarse mesh under
+    /// strong curvature that edge can bulge through the cells below it.
+    /// [`CurveReport::caps_kept_after`] says when it happened.
+    pub retry_keep_caps: bool,
     /// Repair the linear mesh before curving (default on): cells that cannot
     /// stay valid once curved with their vertices fixed (all vertices on one
     /// surface that bulges into the domain, or a boundary facet whose bulge
@@ -165,6 +172,7 @@ impl Default for CurveOptions {
             solver: SolverChoice::Auto,
             direct_ordering: DirectOrdering::Auto,
             remove_caps: true,
+            retry_keep_caps: true,
             repair: true,
             adaptive: None,
             max_splits: DEFAULT_MAX_SPLITS,
@@ -238,6 +246,10 @@ pub struct CurveReport {
     pub reoriented_cells: usize,
     /// Boundary caps removed before curving (`CurveOptions::remove_caps`).
     pub removed_caps: usize,
+    /// When the run was made a second time with the caps kept
+    /// ([`CurveOptions::retry_keep_caps`]): the error that ended the first
+    /// run, which had removed caps. The rest of the report is the second run's.
+    pub caps_kept_after: Option<String>,
     /// What the repair did (`CurveOptions::repair`; all zero when off).
     pub repair: RepairSummary,
     /// For each cell of the curved mesh, an input cell: itself, or for a cell
@@ -322,12 +334,14 @@ pub fn curve(
 ) -> Result<CurvedMesh> {
     let t0 = Instant::now();
     let prepared = Prepared::new(linear, opts)?;
-    run_prepared(&prepared, projector, opts, progress, t0)
+    run_retrying(&prepared, &|o| Prepared::new(linear, o), projector, opts, progress, t0)
 }
 
 /// [`curve`] on a mesh already prepared ([`Prepared::new`]) for the order,
 /// node spacing and cap removal of `opts`: the same result, without
-/// validating, orienting and elevating the mesh again.
+/// validating, orienting and elevating the mesh again, and without the
+/// second run with the caps kept ([`CurveOptions::retry_keep_caps`]), which
+/// needs the linear mesh ([`crate::session::Session`] makes it).
 pub fn curve_prepared(
     prepared: &Prepared,
     projector: &dyn Projector,
@@ -335,16 +349,51 @@ pub fn curve_prepared(
     progress: &mut dyn FnMut(&Progress) -> bool,
 ) -> Result<CurvedMesh> {
     prepared.check_matches(opts)?;
-    run_prepared(prepared, projector, opts, progress, Instant::now())
+    run_prepared(prepared, projector, opts, progress, Instant::now(), &mut false)
+}
+
+/// [`run_prepared`]; when it ends with a certified-invalid cell after
+/// removing caps and `opts.retry_keep_caps`, once more from `reprepare`d
+/// with the caps kept. An error of the second run says the first's too.
+pub(crate) fn run_retrying(
+    prepared: &Prepared,
+    reprepare: &dyn Fn(&CurveOptions) -> Result<Prepared>,
+    projector: &dyn Projector,
+    opts: &CurveOptions,
+    progress: &mut dyn FnMut(&Progress) -> bool,
+    t0: Instant,
+) -> Result<CurvedMesh> {
+    let mut caps_removed = false;
+    let first = match run_prepared(prepared, projector, opts, progress, t0, &mut caps_removed) {
+        Err(e @ Error::InvalidElement { .. }) if caps_removed && opts.retry_keep_caps => e.to_string(),
+        done => return done,
+    };
+    let kept = CurveOptions { remove_caps: false, ..opts.clone() };
+    match run_prepared(&reprepare(&kept)?, projector, &kept, progress, Instant::now(), &mut false) {
+        Ok(mut curved) => {
+            curved.report.caps_kept_after = Some(first);
+            // The stages' times are the second run's; the total counts both.
+            curved.report.timings.total = t0.elapsed().as_secs_f64();
+            Ok(curved)
+        }
+        Err(Error::InvalidElement { cell, message }) => Err(Error::InvalidElement {
+            cell,
+            message: format!("{message} (in a second run with the caps kept; the first had ended: {first})"),
+        }),
+        Err(e) => Err(e),
+    }
 }
 
 /// The stages of [`curve`] from a prepared mesh, timed from `t0`.
+/// `caps_removed` is set when the mesh curved has had caps removed, by the
+/// preparation or the repair.
 fn run_prepared(
     prepared: &Prepared,
     projector: &dyn Projector,
     opts: &CurveOptions,
     progress: &mut dyn FnMut(&Progress) -> bool,
     t0: Instant,
+    caps_removed: &mut bool,
 ) -> Result<CurvedMesh> {
     let material = validate_options(opts)?;
     let mut tick = |stage: Stage, step: usize, total: usize| -> Result<()> {
@@ -359,6 +408,7 @@ fn run_prepared(
     // 1-2. Repair and elevate.
     let elevated = run.elevate(prepared)?;
     run.timings.elevate = t0.elapsed().as_secs_f64();
+    *caps_removed = elevated.fixes.removed_caps + elevated.fixes.repair.surface_caps > 0;
 
     // 3. Project the boundary nodes.
     let placement = run.project(&elevated)?;
@@ -754,6 +804,7 @@ impl Optimised {
             cells: mesh.n_cells(),
             reoriented_cells: fixes.reoriented,
             removed_caps: fixes.removed_caps,
+            caps_kept_after: None,
             repair: fixes.repair,
             input_cell,
             projected_nodes: placement.projected_nodes,

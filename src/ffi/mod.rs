@@ -894,6 +894,68 @@ pub unsafe extern "C" fn hoc_mesh_set_remove_caps(mesh: *mut HocMesh, remove: c_
     })
 }
 
+/// Whether a run that removed caps (hoc_mesh_set_remove_caps, or the
+/// repair's) and still ends with a certified-invalid cell is made once more
+/// with the caps kept (default 1). Removing a cap turns its interior chord
+/// into a boundary edge, which on a coarse mesh under strong curvature can
+/// bulge through the cells below it. hoc_mesh_retry says when it happened.
+/// Takes effect at the next run.
+///
+/// @param[in,out] mesh the handle
+/// @param[in] enabled 1 on, 0 off
+/// @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_set_retry(mesh: *mut HocMesh, enabled: c_int) -> HocStatus {
+    guard(mesh, || {
+        let h = handle_mut(mesh)?;
+        let enabled = match enabled {
+            0 => false,
+            1 => true,
+            e => return Err(arg(format!("enabled must be 0 or 1, got {e}"))),
+        };
+        h.session.set_retry_keep_caps(enabled);
+        Ok(())
+    })
+}
+
+/// Whether the last successful run was made a second time with the caps
+/// kept (hoc_mesh_set_retry), and the error that ended its first run.
+/// Before any run, and after a run made once, caps_kept is 0 and the message "".
+///
+/// @param[in] mesh the handle
+/// @param[out] caps_kept 1 if the run was made again with the caps kept, else 0
+/// @param[out] message_len NULL, or the length of the whole message in bytes
+///   (without its NUL): call with message NULL first to size the buffer
+/// @param[in] len bytes available at message (with message NULL: ignored)
+/// @param[out] message NULL, or the first run's error message, NUL-terminated
+///   and cut to len - 1 bytes (len 0: nothing written)
+/// @return HOC_OK or HOC_ERROR_NULL_POINTER
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_retry(
+    mesh: *const HocMesh,
+    caps_kept: *mut c_int,
+    message_len: *mut usize,
+    len: usize,
+    message: *mut c_char,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle(mesh)?;
+        let caps_kept = caps_kept.as_mut().ok_or_else(|| null("caps_kept"))?;
+        let first = h.session.report().and_then(|r| r.caps_kept_after.as_deref());
+        *caps_kept = first.is_some() as c_int;
+        let bytes = first.unwrap_or("").as_bytes();
+        if let Some(l) = message_len.as_mut() {
+            *l = bytes.len();
+        }
+        if !message.is_null() && len > 0 {
+            let n = bytes.len().min(len - 1);
+            std::ptr::copy_nonoverlapping(bytes.as_ptr(), message.cast::<u8>(), n);
+            *message.add(n) = 0;
+        }
+        Ok(())
+    })
+}
+
 /// Whether each run repairs the linear mesh first (default 1). A cell whose
 /// vertices all lie on one surface that bulges into the domain (e.g. a tet
 /// inside the shell between a sphere cavity and its straight facets), or
@@ -1226,8 +1288,10 @@ pub unsafe extern "C" fn hoc_mesh_quality(mesh: *const HocMesh, out: *mut HocQua
     })
 }
 
-/// What the repair did: the boundary caps removed, and the flips of the last
-/// successful run (zero before a run, or when the run did not repair).
+/// What the repair did: the boundary caps removed (by the last successful
+/// run, which may have kept them, see hoc_mesh_retry; before a run, those
+/// the run will remove), and the flips of the last successful run (zero
+/// before a run, or when the run did not repair).
 ///
 /// @param[in] mesh the handle
 /// @param[out] out the counts
@@ -1240,7 +1304,7 @@ pub unsafe extern "C" fn hoc_mesh_repair_summary(mesh: *const HocMesh, out: *mut
         let s = &h.session;
         let r = s.report().map(|r| r.repair).unwrap_or_default();
         *out = HocRepair {
-            removed_caps: s.n_input_cells() - s.n_straight_cells(),
+            removed_caps: s.report().map_or(s.n_input_cells() - s.n_straight_cells(), |r| r.removed_caps),
             bad_cells: r.bad_cells,
             surface_cells: r.surface_cells,
             bulge_cells: r.bulge_cells,

@@ -47,8 +47,8 @@ USAGE:
                 [--formulation linear|ile] [--material linear]
                 [--young E] [--poisson NU] [--increments N]
                 [--spacing optimal|equispaced] [--solver auto|direct|iterative]
-                [--caps remove|keep] [--repair on|off] [--adaptive on|off]
-                [--max-splits K] [--condense on|off] [--optimize on|off]
+                [--caps remove|keep] [--retry on|off] [--repair on|off]
+                [--adaptive on|off] [--max-splits K] [--condense on|off] [--optimize on|off]
       Curve a linear gmsh (.msh 4.1) mesh. TAG is the elementary entity tag of
       the boundary facets (or 3D feature curves) that lie on SHAPE:
         sphere:cx,cy,cz,r        circle:cx,cy,r (2D)     circle3:cx,cy,cz,nx,ny,nz,r
@@ -56,7 +56,9 @@ USAGE:
         plane:px,py,pz,nx,ny,nz  line:px,py,pz,dx,dy,dz  naca4:DDDD,chord,x0,y0
       Boundary facets whose tag has no shape stay straight. 3D boundary caps
       (tets with two faces on one smooth surface, which cannot stay valid) are
-      removed unless --caps keep; the report says how many. The repair (on
+      removed unless --caps keep; the report says how many. If the run then
+      ends with an invalid cell, it is made again with the caps kept (unless
+      --retry off), and the report's caps_kept_after says why. The repair (on
       unless --repair off) then flips away the cells that cannot stay valid
       with their vertices fixed: all vertices on one surface that bulges into
       the domain, or a boundary facet bulging past half the height of the
@@ -203,6 +205,7 @@ fn options_from(args: &Args, default_order: usize) -> Result<CurveOptions> {
         Some("keep") => false,
         Some(c) => return Err(Error::InvalidInput(format!("unknown --caps '{c}' (remove or keep)"))),
     };
+    o.retry_keep_caps = args.on_off("retry")?.unwrap_or(o.retry_keep_caps);
     o.repair = args.on_off("repair")?.unwrap_or(o.repair);
     if let Some(s) = args.get("solver") {
         o.solver = SolverChoice::parse(s)?;
@@ -239,6 +242,9 @@ fn run_case(label: &str, mesh: &LinearMesh, projector: &ShapeProjector, opts: &C
         "[{label}] p={} nodes={} dofs={} min Q3={:.4} mean Q3={:.4} invalid={} ({:.2} s)",
         r.order, r.nodes, r.dofs, r.quality.min_q3, r.quality.mean_q3, r.quality.n_invalid, r.timings.total
     );
+    if let Some(first) = &r.caps_kept_after {
+        eprintln!("[{label}] made again with the caps kept, after: {first}");
+    }
     eprintln!("[{label}] {}", increments_line(r));
     if r.solves.fallbacks() > 0 {
         eprintln!("[{label}] {}", fallbacks_line(r));
@@ -345,6 +351,7 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
             "spacing",
             "solver",
             "caps",
+            "retry",
             "repair",
             "adaptive",
             "max-splits",
@@ -527,7 +534,7 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
         "{{\n  \"order\": {},\n  \"formulation\": \"{}\",\n  \"material\": \"{}\",\n  \"young\": {},\n  \
          \"poisson\": {},\n  \"increments\": {},\n  \"adaptive\": {},\n  \"max_splits\": {},\n  \
          \"increments_taken\": {},\n  \"load_fractions\": {:?},\n  \"step_backs\": [{}],\n  \"spacing\": \"{}\",\n  \"nodes\": {},\n  \"dofs\": {},\n  \"system_dofs\": {},\n  \
-         \"cells\": {},\n  \"removed_caps\": {},\n  \"repair\": {},\n  \"projected_nodes\": {},\n  \"max_projection_distance\": {},\n{},\n  \
+         \"cells\": {},\n  \"removed_caps\": {},\n  \"caps_kept_after\": {},\n  \"repair\": {},\n  \"projected_nodes\": {},\n  \"max_projection_distance\": {},\n{},\n  \
          \"newton_history\": {:?},\n  \"linear_solver\": \"{}\",\n  \"solver_iterations\": {:?},\n  \
          \"solver_per_solve\": [{}],\n  \"fallbacks\": {},\n  \"fallback_per_solve\": [{}],\n  \
          \"seconds\": {{\"total\": {}, \"elevate\": {}, \"project\": {}, \"assembly\": {}, \"setup\": {}, \"solve\": {}, \"quality\": {}, \"check\": {}, \"optimize\": {}}},\n  \
@@ -559,6 +566,7 @@ fn report_json(c: &CurvedMesh, opts: &CurveOptions, output: Option<&Path>) -> St
         r.system_dofs,
         r.cells,
         r.removed_caps,
+        r.caps_kept_after.as_ref().map_or("null".into(), |m| format!("\"{}\"", json_escape(m))),
         repair_json(&r.repair),
         r.projected_nodes,
         num(r.max_projection_distance),
