@@ -1,6 +1,6 @@
 """Robustness corpus, CI form: real generators' meshes must curve to valid meshes.
 
-The quick subset of the corpus (scripts/gen_corpus.py --quick: 11 small
+The quick subset of the corpus (scripts/gen_corpus.py --quick: 12 small
 linear meshes, 170-560 tets, of sphere, torus and cylinder cavities in a box,
 made by gmsh and by TetGen) is generated into a temporary directory and each
 case is curved with the defaults through the CLI (bench/corpus.py's
