@@ -20,7 +20,7 @@
 
 use std::path::Path;
 
-use hocurve::curve::{curve, CurveOptions};
+use hocurve::curve::{curve, CurveOptions, Stage};
 use hocurve::geometry::{facet_bulges, project_samples, Shape, ShapeProjector};
 use hocurve::mesh::repair::{bad_cells, repair_with};
 use hocurve::mesh::{validate_and_orient, LinearMesh};
@@ -345,7 +345,20 @@ fn assert_on_torus(mesh: &hocurve::mesh::HighOrderMesh) {
 #[test]
 fn a_run_that_removed_caps_and_ends_invalid_is_made_again_with_the_caps_kept() {
     let (mesh, projector) = coarse_torus();
-    let c = curve(&mesh, &projector, &CurveOptions::default(), &mut |_| true).unwrap();
+    let mut stages = Vec::new();
+    let c = curve(&mesh, &projector, &CurveOptions::default(), &mut |p| {
+        stages.push(p.stage);
+        true
+    })
+    .unwrap();
+    // Two runs, and the first does not start its elastic stage again after
+    // its optimisation (the second start): the retry with the caps kept
+    // stands in for it.
+    let runs: Vec<usize> = (0..stages.len()).filter(|&i| stages[i] == Stage::Elevate).collect();
+    assert_eq!(runs.len(), 2, "{stages:?}");
+    let first = &stages[..runs[1]];
+    let optimise = first.iter().position(|&s| s == Stage::Optimize).expect("the first run optimised");
+    assert!(!first[optimise..].contains(&Stage::Increment), "{first:?}");
     let r = &c.report;
     let first = r.caps_kept_after.as_deref().expect("the run was made once");
     assert!(first.starts_with("invalid element: cell ") && first.contains("after optimisation"), "{first}");
