@@ -156,8 +156,8 @@ fn the_session_repairs_at_each_run_and_maps_the_new_cells() {
     assert_eq!(s.quality().n_certified_invalid, 0);
 }
 
-/// Projects onto the sphere about the origin whose radius `user` points to (3D points).
-unsafe extern "C" fn sphere(
+/// Projects onto the [`Shape`] that `user` points to (3D points).
+unsafe extern "C" fn onto_shape(
     user: *mut std::ffi::c_void,
     _: std::ffi::c_int,
     _: std::ffi::c_int,
@@ -166,14 +166,25 @@ unsafe extern "C" fn sphere(
     out: *mut f64,
 ) -> std::ffi::c_int {
     let (p, o) = (std::slice::from_raw_parts(points, 3 * n), std::slice::from_raw_parts_mut(out, 3 * n));
-    let r = *(user as *const f64);
+    let shape = &*(user as *const Shape);
     for (x, y) in p.chunks(3).zip(o.chunks_mut(3)) {
-        let l = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
-        for k in 0..3 {
-            y[k] = r * x[k] / l;
-        }
+        y.copy_from_slice(&shape.closest_point([x[0], x[1], x[2]]));
     }
     0
+}
+
+/// A C ABI handle on `m` (3D, boundary tagged) projecting onto `shape`
+/// (which must outlive it), at order `p`.
+unsafe fn c_handle(m: &LinearMesh, shape: &mut Shape, p: std::ffi::c_int) -> *mut hocurve::ffi::HocMesh {
+    use hocurve::ffi::*;
+    let cells: Vec<i64> = m.cells.iter().map(|&v| v as i64).collect();
+    let facets: Vec<i64> = m.facets.iter().map(|&v| v as i64).collect();
+    let mut h = std::ptr::null_mut();
+    assert_eq!(hoc_mesh_create(3, m.n_vertices(), m.coords.as_ptr(), m.n_cells(), cells.as_ptr(), &mut h), HOC_OK);
+    assert_eq!(hoc_mesh_set_boundary(h, m.n_facets(), facets.as_ptr(), m.facet_tags.as_ptr()), HOC_OK);
+    assert_eq!(hoc_mesh_set_projector(h, Some(onto_shape), shape as *mut Shape as *mut _), HOC_OK);
+    assert_eq!(hoc_mesh_set_order(h, p, HOC_SPACING_OPTIMAL), HOC_OK);
+    h
 }
 
 #[test]
@@ -186,8 +197,8 @@ fn the_c_abi_turns_the_repair_on_and_off_and_reports_it() {
         let mut m = std::ptr::null_mut();
         assert_eq!(hoc_mesh_create(3, mesh.n_vertices(), mesh.coords.as_ptr(), 7, cells.as_ptr(), &mut m), HOC_OK);
         assert_eq!(hoc_mesh_set_boundary(m, mesh.n_facets(), facets.as_ptr(), mesh.facet_tags.as_ptr()), HOC_OK);
-        let mut radius = 0.70;
-        assert_eq!(hoc_mesh_set_projector(m, Some(sphere), &mut radius as *mut f64 as *mut _), HOC_OK);
+        let mut sphere = Shape::Sphere { center: [0.0; 3], radius: 0.70 };
+        assert_eq!(hoc_mesh_set_projector(m, Some(onto_shape), &mut sphere as *mut Shape as *mut _), HOC_OK);
         assert_eq!(hoc_mesh_set_order(m, 2, HOC_SPACING_OPTIMAL), HOC_OK);
         // Caps kept: the repair flips (by default it would remove the cell as a cap).
         assert_eq!(hoc_mesh_set_remove_caps(m, 0), HOC_OK);
@@ -297,15 +308,9 @@ fn a_surface_flip_makes_valid_a_sphere_cavity_the_elastic_stage_cannot_curve() {
     assert!(facets.filter(|(_, &t)| t == 7).all(|(f, _)| f.iter().all(|&v| on_sphere(&repaired.mesh, v, 0.8))));
     // The C ABI reports it.
     use hocurve::ffi::*;
-    let cells: Vec<i64> = m.cells.iter().map(|&v| v as i64).collect();
-    let facets: Vec<i64> = m.facets.iter().map(|&v| v as i64).collect();
+    let mut sphere = Shape::Sphere { center: [0.0; 3], radius: 0.8 };
     unsafe {
-        let mut h = std::ptr::null_mut();
-        assert_eq!(hoc_mesh_create(3, m.n_vertices(), m.coords.as_ptr(), m.n_cells(), cells.as_ptr(), &mut h), HOC_OK);
-        assert_eq!(hoc_mesh_set_boundary(h, m.n_facets(), facets.as_ptr(), m.facet_tags.as_ptr()), HOC_OK);
-        let mut radius = 0.8;
-        assert_eq!(hoc_mesh_set_projector(h, Some(sphere), &mut radius as *mut f64 as *mut _), HOC_OK);
-        assert_eq!(hoc_mesh_set_order(h, 3, HOC_SPACING_OPTIMAL), HOC_OK);
+        let mut h = c_handle(&m, &mut sphere, 3);
         assert_eq!(hoc_mesh_run_increments(h, 10), HOC_OK);
         let mut s = HocRepair::default();
         assert_eq!(hoc_mesh_repair_summary(h, &mut s), HOC_OK);
@@ -375,32 +380,9 @@ fn the_c_abi_makes_the_run_again_with_the_caps_kept_unless_told_not_to() {
     use hocurve::ffi::*;
     let (mesh, _) = coarse_torus();
     let (m, _) = validate_and_orient(&mesh).unwrap();
-    let cells: Vec<i64> = m.cells.iter().map(|&v| v as i64).collect();
-    let facets: Vec<i64> = m.facets.iter().map(|&v| v as i64).collect();
-    unsafe extern "C" fn torus(
-        _: *mut std::ffi::c_void,
-        _: std::ffi::c_int,
-        _: std::ffi::c_int,
-        n: usize,
-        points: *const f64,
-        out: *mut f64,
-    ) -> std::ffi::c_int {
-        let shape = Shape::parse("torus:0,0,0,0.6,0.3").unwrap();
-        for i in 0..n {
-            let p = [*points.add(3 * i), *points.add(3 * i + 1), *points.add(3 * i + 2)];
-            let q = shape.closest_point(p);
-            for k in 0..3 {
-                *out.add(3 * i + k) = q[k];
-            }
-        }
-        0
-    }
+    let mut torus = Shape::parse("torus:0,0,0,0.6,0.3").unwrap();
     unsafe {
-        let mut h = std::ptr::null_mut();
-        assert_eq!(hoc_mesh_create(3, m.n_vertices(), m.coords.as_ptr(), m.n_cells(), cells.as_ptr(), &mut h), HOC_OK);
-        assert_eq!(hoc_mesh_set_boundary(h, m.n_facets(), facets.as_ptr(), m.facet_tags.as_ptr()), HOC_OK);
-        assert_eq!(hoc_mesh_set_projector(h, Some(torus), std::ptr::null_mut()), HOC_OK);
-        assert_eq!(hoc_mesh_set_order(h, 2, HOC_SPACING_OPTIMAL), HOC_OK);
+        let mut h = c_handle(&m, &mut torus, 2);
         let mut caps = HocRepair::default();
         assert_eq!(hoc_mesh_repair_summary(h, &mut caps), HOC_OK);
         assert!(caps.removed_caps > 0, "the preparation removes caps");

@@ -420,6 +420,15 @@ fn arg(msg: impl Into<String>) -> (HocStatus, String) {
     (HOC_ERROR_INVALID_ARGUMENT, msg.into())
 }
 
+/// A C boolean argument: 0 or 1, else an invalid-argument error naming it.
+fn flag(name: &str, value: c_int) -> Result<bool, (HocStatus, String)> {
+    match value {
+        0 => Ok(false),
+        1 => Ok(true),
+        v => Err(arg(format!("{name} must be 0 or 1, got {v}"))),
+    }
+}
+
 fn null(what: &str) -> (HocStatus, String) {
     (HOC_ERROR_NULL_POINTER, format!("{what} is NULL"))
 }
@@ -885,11 +894,7 @@ pub unsafe extern "C" fn hoc_mesh_set_threads(mesh: *mut HocMesh, n_threads: c_i
 pub unsafe extern "C" fn hoc_mesh_set_remove_caps(mesh: *mut HocMesh, remove: c_int) -> HocStatus {
     guard(mesh, || {
         let h = handle_mut(mesh)?;
-        let remove = match remove {
-            0 => false,
-            1 => true,
-            r => return Err(arg(format!("remove must be 0 or 1, got {r}"))),
-        };
+        let remove = flag("remove", remove)?;
         h.session.set_remove_caps(remove).map_err(err)
     })
 }
@@ -908,11 +913,7 @@ pub unsafe extern "C" fn hoc_mesh_set_remove_caps(mesh: *mut HocMesh, remove: c_
 pub unsafe extern "C" fn hoc_mesh_set_retry(mesh: *mut HocMesh, enabled: c_int) -> HocStatus {
     guard(mesh, || {
         let h = handle_mut(mesh)?;
-        let enabled = match enabled {
-            0 => false,
-            1 => true,
-            e => return Err(arg(format!("enabled must be 0 or 1, got {e}"))),
-        };
+        let enabled = flag("enabled", enabled)?;
         h.session.set_retry_keep_caps(enabled);
         Ok(())
     })
@@ -982,11 +983,7 @@ pub unsafe extern "C" fn hoc_mesh_retry(
 pub unsafe extern "C" fn hoc_mesh_set_repair(mesh: *mut HocMesh, enabled: c_int) -> HocStatus {
     guard(mesh, || {
         let h = handle_mut(mesh)?;
-        let enabled = match enabled {
-            0 => false,
-            1 => true,
-            e => return Err(arg(format!("enabled must be 0 or 1, got {e}"))),
-        };
+        let enabled = flag("enabled", enabled)?;
         h.session.set_repair(enabled);
         Ok(())
     })
@@ -1007,11 +1004,7 @@ pub unsafe extern "C" fn hoc_mesh_set_repair(mesh: *mut HocMesh, enabled: c_int)
 pub unsafe extern "C" fn hoc_mesh_set_static_condensation(mesh: *mut HocMesh, enabled: c_int) -> HocStatus {
     guard(mesh, || {
         let h = handle_mut(mesh)?;
-        let enabled = match enabled {
-            0 => false,
-            1 => true,
-            e => return Err(arg(format!("enabled must be 0 or 1, got {e}"))),
-        };
+        let enabled = flag("enabled", enabled)?;
         h.session.set_condense(enabled);
         Ok(())
     })
@@ -1033,11 +1026,7 @@ pub unsafe extern "C" fn hoc_mesh_set_static_condensation(mesh: *mut HocMesh, en
 pub unsafe extern "C" fn hoc_mesh_set_optimize(mesh: *mut HocMesh, enabled: c_int) -> HocStatus {
     guard(mesh, || {
         let h = handle_mut(mesh)?;
-        let enabled = match enabled {
-            0 => false,
-            1 => true,
-            e => return Err(arg(format!("enabled must be 0 or 1, got {e}"))),
-        };
+        let enabled = flag("enabled", enabled)?;
         h.session.set_optimize(enabled);
         Ok(())
     })
