@@ -312,8 +312,17 @@ class Placer {
   // nodes: they are answered by the checked closest point (the projection
   // the optimisation's tangent frames assume, not a parametric map of some
   // straight facet) and are not counted as placements below. The host
-  // clears it from its progress callback.
+  // clears it from its progress callback, and sets it again (start_run)
+  // when hocurve starts a run: it makes a second one with the caps kept
+  // when the first fails.
   bool placing = true;
+  // A run starts: placing again, and the per-node counts below start from
+  // zero, so they describe the run that stands (the per-facet ones are of
+  // the input's facets and are kept).
+  void start_run() {
+    placing = true;
+    fallbacks = fallbacks_unlocated = closest_replaced = fallbacks_seam = fallbacks_far = projected = 0;
+  }
   // Nodes placed by closest point for want of a parametric placement, in
   // total and by reason (each node counts once, under the first reason met).
   std::size_t fallbacks = 0;
@@ -909,8 +918,9 @@ struct Projector {
 // Set up a hocurve mesh from the collected linear mesh (which must outlive it:
 // the projector reads it). Its progress callback ends the placement when
 // hocurve's projection stage (1) is over: later projector calls slide nodes
-// in the optimisation (Placer::placing). A host that sets its own progress
-// callback must clear proj.placer->placing itself.
+// in the optimisation (Placer::placing); and starts it again at each run's
+// first stage (0). A host that sets its own progress callback must do both
+// itself.
 inline hocurve::Mesh make_mesh(const LinearMesh &m, Projector &proj) {
   hocurve::Mesh mesh(m.dim, m.coords, m.cells);
   mesh.set_boundary(m.facets, m.facet_tags);
@@ -922,7 +932,9 @@ inline hocurve::Mesh make_mesh(const LinearMesh &m, Projector &proj) {
     return Projector::callback(pp, dim, tag, n, in, out);
   });
   mesh.set_progress([pp](int stage, int, int) {
-    if (stage > 1 && pp->placer) pp->placer->placing = false;
+    if (!pp->placer) return 0;
+    if (stage == HOC_STAGE_ELEVATE) pp->placer->start_run();
+    else if (stage > HOC_STAGE_PROJECT) pp->placer->placing = false;
     return 0;
   });
   return mesh;
