@@ -904,7 +904,10 @@ pub unsafe extern "C" fn hoc_mesh_set_remove_caps(mesh: *mut HocMesh, remove: c_
 /// with the caps kept (default 1). Removing a cap turns its interior chord
 /// into a boundary edge, which on a coarse mesh under strong curvature can
 /// bulge through the cells below it. hoc_mesh_retry says when it happened.
-/// Takes effect at the next run.
+/// The second run goes through every stage again from HOC_STAGE_ELEVATE, and
+/// asks the projector to place the boundary again (a host whose projector
+/// or progress callback keeps state per run sees it there). Takes effect
+/// at the next run.
 ///
 /// @param[in,out] mesh the handle
 /// @param[in] enabled 1 on, 0 off
