@@ -152,6 +152,8 @@ int main() {
   HocQuality q = target.quality();
   REQUIRE(q.n_invalid == 0, "%zu invalid cells", q.n_invalid);
   REQUIRE(q.n_cells == cells.size() / 4, "n_cells %zu", q.n_cells);
+  // Curved valid as first made: not made again with the caps kept.
+  REQUIRE(!target.caps_kept_after(), "made again with the caps kept after: %s", target.caps_kept_after()->c_str());
 
   std::vector<double> x = target.nodes();
   auto [n_cells, npc] = target.cell_count();
