@@ -16,6 +16,34 @@ pub fn det(dim: usize, m: &Mat3) -> f64 {
     }
 }
 
+/// ∛x for x > 0, to within an ulp: FreeBSD's and musl's `cbrt` (a 5-bit
+/// estimate from the exponent, a polynomial to 23 bits, one Halley step).
+/// The optimisation's energy takes one per sample point, and Rust's
+/// `f64::cbrt`, correctly rounded, cost it a tenth of its time. Zero,
+/// subnormal, infinite and NaN inputs go to `f64::cbrt`.
+#[inline]
+pub fn cbrt_positive(x: f64) -> f64 {
+    if !(x >= f64::MIN_POSITIVE && x < f64::INFINITY) {
+        return x.cbrt();
+    }
+    const B1: u64 = 715_094_163;
+    const P0: f64 = 1.87595182427177009643;
+    const P1: f64 = -1.88497979543377169875;
+    const P2: f64 = 1.621429720105354466140;
+    const P3: f64 = -0.758397934778766047437;
+    const P4: f64 = 0.145996192886612446982;
+    // Exponent / 3 in the high word: |t - ∛x| < 3.2 % of ∛x.
+    let hx = x.to_bits() >> 32;
+    let mut t = f64::from_bits((hx / 3 + B1) << 32);
+    // To 23 bits, by a polynomial in r = t³/x.
+    let r = (t * t) * (t / x);
+    t *= (P0 + r * (P1 + r * P2)) + ((r * r) * r) * (P3 + r * P4);
+    // Rounded to 21 bits, so that t² is exact, then one Halley step.
+    t = f64::from_bits((t.to_bits() + 0x8000_0000) & 0xffff_ffff_c000_0000);
+    let r = x / (t * t);
+    t + t * ((r - t) / (t + t + r))
+}
+
 /// Cofactor matrix of the leading block: cof(M) = det(M) M⁻ᵀ (defined for any M).
 #[inline]
 pub fn cofactor(dim: usize, m: &Mat3) -> Mat3 {
@@ -67,6 +95,30 @@ pub fn matmul(dim: usize, a: &Mat3, b: &Mat3) -> Mat3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn cbrt_positive_is_within_an_ulp_of_the_correctly_rounded_root() {
+        // Every binade of the normal range, at irregular points in each, and
+        // exact cubes; the rest goes to f64::cbrt.
+        let ulp = |y: f64| f64::from_bits(y.to_bits() + 1) - y;
+        let mut s = 0x9e37_79b9_7f4a_7c15u64;
+        for e in -1022..1024 {
+            for _ in 0..64 {
+                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                let x = (1.0 + (s >> 11) as f64 / (1u64 << 53) as f64) * 2f64.powi(e);
+                let (y, exact) = (cbrt_positive(x), x.cbrt());
+                assert!((y - exact).abs() <= ulp(exact), "cbrt({x:e}) = {y:e}, not {exact:e}");
+            }
+        }
+        for k in 1..2000 {
+            let c = (k as f64).powi(3);
+            assert_eq!(cbrt_positive(c), k as f64);
+        }
+        for x in [0.0, 1e-310, f64::INFINITY] {
+            assert_eq!(cbrt_positive(x), x.cbrt());
+        }
+        assert!(cbrt_positive(f64::NAN).is_nan());
+    }
 
     #[test]
     fn inverse_times_matrix_is_identity_in_2d_and_3d() {

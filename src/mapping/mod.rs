@@ -58,13 +58,20 @@ impl ElementCache {
 /// `grads[a*dim+j] = ∂N_a/∂ξ_j`.
 #[inline]
 pub fn jacobian(dim: usize, x: &[f64], grads: &[f64]) -> Mat3 {
+    match dim {
+        2 => jacobian_in::<2>(x, grads),
+        _ => jacobian_in::<3>(x, grads),
+    }
+}
+
+/// [`jacobian`] in dimension `D`, its loops unrolled.
+#[inline(always)]
+pub fn jacobian_in<const D: usize>(x: &[f64], grads: &[f64]) -> Mat3 {
     let mut j = [[0.0; 3]; 3];
-    let n = grads.len() / dim;
-    for a in 0..n {
-        for r in 0..dim {
-            let xa = x[a * dim + r];
-            for c in 0..dim {
-                j[r][c] += xa * grads[a * dim + c];
+    for (xa, ga) in x.chunks_exact(D).zip(grads.chunks_exact(D)) {
+        for r in 0..D {
+            for c in 0..D {
+                j[r][c] += xa[r] * ga[c];
             }
         }
     }

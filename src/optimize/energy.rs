@@ -25,7 +25,7 @@ pub const SIZE_WEIGHT: f64 = 0.5;
 
 /// μ(F) and ∂μ/∂F at one point, or None where it is infinite (δ = 0 and
 /// J ≤ 0, or a non-finite F).
-#[inline]
+#[inline(always)]
 pub fn distortion(dim: usize, f: &Mat3, delta: f64) -> Option<(f64, Mat3)> {
     let j = linalg::det(dim, f);
     let s = (j * j + 4.0 * delta * delta).sqrt();
@@ -40,9 +40,10 @@ pub fn distortion(dim: usize, f: &Mat3, delta: f64) -> Option<(f64, Mat3)> {
             ff += f[i][k] * f[i][k];
         }
     }
-    // σ^(2/d) without powf (a tenth of the optimisation's time when it was powf).
+    // σ^(2/d) without powf (a tenth of the optimisation's time when it was
+    // powf), nor Rust's correctly rounded cbrt (as much again).
     let scale = if dim == 3 {
-        let c = sigma.cbrt();
+        let c = linalg::cbrt_positive(sigma);
         c * c
     } else {
         sigma
@@ -134,23 +135,38 @@ impl SampleRule {
     /// the node coordinates `xe` into `grad` (same layout as `xe`); None if
     /// it is infinite.
     pub fn energy_grad(&self, e: &ElementSamples, xe: &[f64], delta: f64, grad: &mut [f64]) -> Option<f64> {
-        let (dim, nb) = (self.dim, self.n_basis);
-        let s = nb * dim;
+        // The optimisation's inner loop: one copy per dimension, so that the
+        // loops over it are unrolled (the arithmetic is the same).
+        match self.dim {
+            2 => self.energy_grad_in::<2>(e, xe, delta, grad),
+            _ => self.energy_grad_in::<3>(e, xe, delta, grad),
+        }
+    }
+
+    /// [`Self::energy_grad`] in dimension `D`.
+    #[inline(always)]
+    fn energy_grad_in<const D: usize>(
+        &self,
+        e: &ElementSamples,
+        xe: &[f64],
+        delta: f64,
+        grad: &mut [f64],
+    ) -> Option<f64> {
+        let s = self.n_basis * D;
+        let (xe, grad) = (&xe[..s], &mut grad[..s]);
         let mut total = 0.0;
-        for q in 0..self.n_points() {
-            let g = &e.grads[q * s..(q + 1) * s];
-            let f = mapping::jacobian(dim, xe, g);
-            let (mu, p) = distortion(dim, &f, delta)?;
-            let w = self.weights[q];
+        for (g, &w) in e.grads.chunks_exact(s).zip(&self.weights) {
+            let f = mapping::jacobian_in::<D>(xe, g);
+            let (mu, p) = distortion(D, &f, delta)?;
             total += w * mu;
             // ∂μ/∂x_a,i = Σ_k P_ik G_a,k.
-            for a in 0..nb {
-                for i in 0..dim {
+            for (ga, out) in g.chunks_exact(D).zip(grad.chunks_exact_mut(D)) {
+                for i in 0..D {
                     let mut v = 0.0;
-                    for k in 0..dim {
-                        v += p[i][k] * g[a * dim + k];
+                    for k in 0..D {
+                        v += p[i][k] * ga[k];
                     }
-                    grad[a * dim + i] += w * v;
+                    out[i] += w * v;
                 }
             }
         }

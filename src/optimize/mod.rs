@@ -414,7 +414,18 @@ impl<'s, 'p> Stage<'s, 'p> {
     fn optimize_patches(&self, state: &MeshState, patches: &[Patch], pass: Pass) -> Vec<Option<Vec<f64>>> {
         let (ctx, projector) = (self.ctx, self.projector);
         let view = state.view();
-        patches.par_iter().map(|p| ctx.optimize_patch(&view, p, pass, projector)).collect()
+        // Largest first: one large patch often takes most of a round, and
+        // started last it would run alone at the end. (Each patch's result
+        // does not depend on the order.)
+        let mut order: Vec<usize> = (0..patches.len()).collect();
+        order.sort_by_key(|&k| std::cmp::Reverse(patches[k].cells.len()));
+        let mut results: Vec<(usize, Option<Vec<f64>>)> = order
+            .into_par_iter()
+            .with_max_len(1)
+            .map(|k| (k, ctx.optimize_patch(&view, &patches[k], pass, projector)))
+            .collect();
+        results.sort_unstable_by_key(|r| r.0);
+        results.into_iter().map(|r| r.1).collect()
     }
 
     /// Write the improved patches' positions into the mesh and measure their cells again.
