@@ -5,7 +5,7 @@
 mod common;
 
 use hocurve::assembly::LinearElasticKernel;
-use hocurve::curve::{solve_increments, solve_increments_from, Stepping, Timings};
+use hocurve::curve::{add_rate, solve_increments, solve_increments_from, Stepping, Timings};
 use hocurve::mapping::ElementCache;
 use hocurve::material::LinearElastic;
 use hocurve::mesh::{validate_and_orient, HighOrderMesh, LinearMesh, NodeConstraint, Topology};
@@ -122,5 +122,35 @@ fn a_solve_started_from_an_earlier_rate_takes_no_iteration_and_scales_its_displa
         let mut cold = mesh.clone();
         let c = solve_increments(&mut cold, &kernel, &part, stepping.clone(), &mut t, &mut |_, _, _| Ok(())).unwrap();
         assert!(c.solves.iterations[0] > 0);
+    }
+}
+
+/// The linear solve that the optimisation stage's hand-over needs (the rest
+/// of the load on the straight mesh) is the first increment's rate scaled:
+/// `add_rate` gives what solving again gives, with the cell interiors
+/// condensed or not, and refuses a rate of another length.
+#[test]
+fn adding_the_scaled_rate_gives_the_mesh_of_solving_again() {
+    let (mesh, ubar, kernel) = patch_problem(&common::cube_mesh(2), 3);
+    for condense in [true, false] {
+        let stepping = Stepping { solver: SolverChoice::Direct, condense, ..Stepping::new(1) };
+        let mut t = Timings::default();
+        let mut first = mesh.clone();
+        let r = solve_increments(&mut first, &kernel, &ubar, stepping.clone(), &mut t, &mut |_, _, _| Ok(())).unwrap();
+        let rate = r.first_rate.expect("the first increment's rate");
+        for scale in [1.0, 0.375] {
+            let part: Vec<f64> = ubar.iter().map(|u| scale * u).collect();
+            let mut solved = mesh.clone();
+            solve_increments(&mut solved, &kernel, &part, stepping.clone(), &mut t, &mut |_, _, _| Ok(())).unwrap();
+            let mut added = mesh.clone();
+            assert!(add_rate(&mut added, &ubar, &rate, scale, condense));
+            let moved = (0..mesh.coords.len()).map(|i| (solved.coords[i] - mesh.coords[i]).abs()).fold(0.0, f64::max);
+            let worst = (0..mesh.coords.len()).map(|i| (added.coords[i] - solved.coords[i]).abs()).fold(0.0, f64::max);
+            assert!(moved > 1e-3, "condense {condense}, scale {scale}: the load moves nothing ({moved:e})");
+            assert!(worst < 1e-12 * moved, "condense {condense}, scale {scale}: {worst:e} of {moved:e}");
+        }
+        let mut unchanged = mesh.clone();
+        assert!(!add_rate(&mut unchanged, &ubar, &rate[1..], 1.0, condense));
+        assert_eq!(unchanged.coords, mesh.coords);
     }
 }

@@ -29,7 +29,7 @@ pub use prepare::Prepared;
 pub use stepping::{ElasticStop, StepBack, StepBackReason, DEFAULT_MAX_SPLITS, MAX_SPLITS};
 // The elastic stage on its own, for the crate's tests.
 #[cfg(feature = "internals")]
-pub use stepping::{solve_increments, solve_increments_from, IncrementsReport, Predictor, Stepping};
+pub use stepping::{add_rate, solve_increments, solve_increments_from, IncrementsReport, Predictor, Stepping};
 #[cfg(not(feature = "internals"))]
 use stepping::{solve_increments, solve_increments_from, IncrementsReport, Stepping};
 
@@ -512,21 +512,44 @@ impl Run<'_> {
         if let (Some(stop), Some(reference)) = (solved.stopped.clone(), &straight_mesh) {
             // The remaining load in one linear elastic solve on the straight
             // mesh, which is always valid: the boundary reaches its target and
-            // the optimisation stage untangles what this leaves inverted. Its
-            // solve starts from the first increment's, scaled (the same
-            // matrix for ILE).
-            let rest: Vec<f64> = ubar.iter().map(|u| u * (1.0 - stop.load)).collect();
-            let rate: Option<Vec<f64>> =
-                solved.first_rate.as_ref().map(|r| r.iter().map(|x| x * (1.0 - stop.load)).collect());
+            // the optimisation stage untangles what this leaves inverted.
             let mut reference = reference.clone();
-            let (finish, kernel) = (setup.finish_stepping.clone(), &setup.linear_kernel);
-            let finish = solve_increments_from(&mut reference, kernel, &rest, finish, rate.as_deref(), timings, tick)?;
-            solved.solves.append(finish.solves);
+            let rate = solved.first_rate.as_deref();
+            self.linear_solve(&mut reference, ubar, 1.0 - stop.load, rate, setup, &mut solved.solves)?;
             for ((x, r), s) in mesh.coords.iter_mut().zip(&reference.coords).zip(straight) {
                 *x += r - s;
             }
         }
         Ok(Elastic { mesh, solved, straight_mesh })
+    }
+
+    /// Move `mesh`, straight-sided, by one linear elastic solve of the load
+    /// `ubar`·`scale`, given `rate`, the elastic stage's first solution per
+    /// unit load on this geometry. When that solve had this very matrix
+    /// (ILE with an isotropic material: the linear kernel on the straight
+    /// mesh), the answer is `rate`·`scale` and nothing is solved again;
+    /// otherwise the solve starts from it, and goes to `log`.
+    fn linear_solve(
+        &mut self,
+        mesh: &mut HighOrderMesh,
+        ubar: &[f64],
+        scale: f64,
+        rate: Option<&[f64]>,
+        setup: &ElasticSetup,
+        log: &mut SolveLog,
+    ) -> Result<()> {
+        if let (true, Some(rate)) = (setup.linear_iso, rate) {
+            if stepping::add_rate(mesh, ubar, rate, scale, setup.stepping.condense) {
+                return Ok(());
+            }
+        }
+        let load: Vec<f64> = ubar.iter().map(|u| u * scale).collect();
+        let start: Option<Vec<f64>> = rate.map(|r| r.iter().map(|x| x * scale).collect());
+        let (finish, kernel) = (setup.finish_stepping.clone(), &setup.linear_kernel);
+        let (timings, tick) = (&mut self.timings, &mut *self.tick);
+        let done = solve_increments_from(mesh, kernel, &load, finish, start.as_deref(), timings, tick)?;
+        log.append(done.solves);
+        Ok(())
     }
 
     /// Stage 5: the quality of the elastic stage's mesh, and the optimisation
@@ -560,10 +583,7 @@ impl Run<'_> {
         if let (Some(mut second), true) = (straight_mesh, self.second_start && done.invalid() > 0 && stopped_after_0) {
             // A second start: the whole load in one linear solve on the straight
             // mesh, then the optimisation; kept if it leaves fewer invalid cells.
-            let (finish, timings, tick) = (setup.finish_stepping.clone(), &mut self.timings, &mut *self.tick);
-            let (kernel, rate) = (&setup.linear_kernel, solved.first_rate.as_deref());
-            let full = solve_increments_from(&mut second, kernel, ubar, finish, rate, timings, tick)?;
-            solved.solves.append(full.solves);
+            self.linear_solve(&mut second, ubar, 1.0, solved.first_rate.as_deref(), setup, &mut solved.solves)?;
             let other = optimiser.finish(second, None)?;
             if other.invalid() < done.invalid() {
                 (done, restarted) = (other, true);

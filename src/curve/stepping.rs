@@ -268,6 +268,24 @@ pub fn solve_increments_from<K: ElementKernel>(
     result
 }
 
+/// What [`solve_increments_from`] with one increment of the linear elastic
+/// kernel gives on `mesh` when `rate` is the solution per unit load of that
+/// same system (the [`IncrementsReport::first_rate`] of a run from this
+/// geometry with that kernel), times the load `scale`, without solving it
+/// again: the free dofs move by `rate`·scale and the prescribed ones by
+/// `ubar`·scale. False, with `mesh` unchanged, if `rate` is not of the free
+/// dofs' length.
+pub fn add_rate(mesh: &mut HighOrderMesh, ubar: &[f64], rate: &[f64], scale: f64, condense: bool) -> bool {
+    let dofs = if condense { DofMap::condensed(mesh) } else { DofMap::new(mesh) };
+    if rate.len() != dofs.n_free || ubar.len() != mesh.coords.len() {
+        return false;
+    }
+    let u: Vec<f64> = rate.iter().map(|r| r * scale).collect();
+    let prescribed: Vec<f64> = ubar.iter().map(|b| b * scale).collect();
+    dofs.add_to(&mut mesh.coords, &u, Some(&prescribed));
+    true
+}
+
 /// Largest `max_splits` accepted: the smallest step is then 2⁻³⁰ of a nominal one.
 pub const MAX_SPLITS: usize = 30;
 
