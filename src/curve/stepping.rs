@@ -335,6 +335,10 @@ fn step_through<K: ElementKernel>(
 ) -> Result<IncrementsReport> {
     let mut out = IncrementsReport::new(&dofs);
     let n_free = dofs.n_free;
+    // The set-up (pattern, assembly plan, ordering or preconditioner) is
+    // the elastic stage's: reported as its first increment, not as the
+    // projection that came before.
+    tick(Stage::Increment, 0, stepping.increments)?;
     let mut ctx = IncrementContext::new(mesh, kernel, stepping, dofs, timings)?;
     out.solves.solver = ctx.solver.name();
     let mut walk = Walk::new(stepping, n_free, mesh);

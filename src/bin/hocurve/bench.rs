@@ -18,12 +18,12 @@ use std::process::Command;
 use std::time::Instant;
 
 use hocurve::cases::{self, Case};
-use hocurve::curve::{curve, CurveOptions, Formulation};
+use hocurve::curve::{curve, CurveOptions, Formulation, Stage};
 use hocurve::mesh::Topology;
 use hocurve::solver::{DirectOrdering, SolverChoice};
 use hocurve::{Error, Result};
 
-use crate::{write_text_atomic, Args};
+use crate::{heap, write_text_atomic, Args};
 
 /// Largest unknown count of a series by default: the full table takes about
 /// ten minutes on two cores with the direct solver.
@@ -100,6 +100,10 @@ pub struct Row {
     /// the case and starting the process).
     pub wall: f64,
     pub peak_mb: f64,
+    /// Peak heap of each phase of the run, in MB, in the order they ran
+    /// ([`PHASES`]): the most bytes allocated at once from its start to
+    /// the next phase's, the case's own mesh and projector included.
+    pub heap_mb: Vec<(String, f64)>,
     pub min_q3: f64,
     /// `Some(reason)` for a failed run (then the numbers above are NaN or 0).
     pub failure: Option<String>,
@@ -111,7 +115,7 @@ impl Row {
     fn to_line(&self) -> String {
         format!(
             "bench-one dim={} p={} size={} cells={} nodes={} unknowns={} solver={} iterations={} elevate_project={:e} \
-             assembly={:e} setup={:e} solve={:e} quality={:e} total={:e} peak_mb={:.1} min_q3={}",
+             assembly={:e} setup={:e} solve={:e} quality={:e} total={:e} peak_mb={:.1} heap_mb={} min_q3={}",
             self.dim,
             self.order,
             self.size,
@@ -127,6 +131,11 @@ impl Row {
             self.quality,
             self.total,
             self.peak_mb,
+            if self.heap_mb.is_empty() {
+                "-".to_string()
+            } else {
+                self.heap_mb.iter().map(|(k, v)| format!("{k}:{v:.1}")).collect::<Vec<_>>().join(",")
+            },
             self.min_q3
         )
     }
@@ -158,6 +167,13 @@ impl Row {
             total: real("total")?,
             wall: f64::NAN,
             peak_mb: real("peak_mb")?,
+            heap_mb: match get("heap_mb")? {
+                "-" => Vec::new(),
+                v => v
+                    .split(',')
+                    .map(|kv| kv.split_once(':').and_then(|(k, m)| Some((k.to_string(), m.parse().ok()?))))
+                    .collect::<Option<Vec<_>>>()?,
+            },
             min_q3: real("min_q3")?,
             failure: None,
         })
@@ -181,9 +197,62 @@ impl Row {
             total: f64::NAN,
             wall,
             peak_mb: f64::NAN,
+            heap_mb: Vec::new(),
             min_q3: f64::NAN,
             failure: Some(why),
         }
+    }
+}
+
+/// The phases of a run, as `bench-one` names them: the preparation (cell
+/// orientation, caps, repair) until the first progress report, then the
+/// stages of [`Stage`].
+pub const PHASES: [&str; 6] = ["prepare", "elevate", "project", "increments", "quality", "optimize"];
+
+fn phase_name(stage: Stage) -> &'static str {
+    match stage {
+        Stage::Elevate => PHASES[1],
+        Stage::Project => PHASES[2],
+        Stage::Increment => PHASES[3],
+        Stage::Quality => PHASES[4],
+        Stage::Optimize => PHASES[5],
+    }
+}
+
+/// The peak heap of each phase of one run, from the progress reports.
+struct PhasePeaks {
+    current: &'static str,
+    peaks: Vec<(String, f64)>,
+}
+
+impl PhasePeaks {
+    /// At the start of a run: its first phase begins.
+    fn new() -> Self {
+        heap::reset_peak();
+        PhasePeaks { current: PHASES[0], peaks: Vec::new() }
+    }
+
+    /// A progress report from phase `name`: if it is a new one, the last ends.
+    fn enter(&mut self, name: &'static str) {
+        if name != self.current {
+            self.close();
+            self.current = name;
+        }
+    }
+
+    fn close(&mut self) {
+        let mb = heap::peak() as f64 / (1u64 << 20) as f64;
+        match self.peaks.iter_mut().find(|(k, _)| k == self.current) {
+            Some((_, m)) => *m = m.max(mb),
+            None => self.peaks.push((self.current.to_string(), mb)),
+        }
+        heap::reset_peak();
+    }
+
+    /// At the end of the run: the peaks, in MB.
+    fn finish(mut self) -> Vec<(String, f64)> {
+        self.close();
+        self.peaks
     }
 }
 
@@ -228,7 +297,12 @@ pub fn cmd_bench_one(argv: &[String]) -> Result<()> {
     hocurve::curve::validate_options(&opts)?;
     let mut mesh = case.mesh.clone();
     mesh.retain_tags(|d, t| case.projector.get(d, t).is_some());
-    let c = curve(&mesh, &case.projector, &opts, &mut |_| true)?;
+    let mut phases = PhasePeaks::new();
+    let c = curve(&mesh, &case.projector, &opts, &mut |p| {
+        phases.enter(phase_name(p.stage));
+        true
+    })?;
+    let heap_mb = phases.finish();
     let r = &c.report;
     let t = &r.timings;
     let iterative = r.solves.iterations.iter().any(|&i| i > 0);
@@ -250,6 +324,7 @@ pub fn cmd_bench_one(argv: &[String]) -> Result<()> {
         total: t.total,
         wall: f64::NAN,
         peak_mb: peak_rss_mb(),
+        heap_mb,
         min_q3: r.quality.min_q3,
         failure: None,
     };
@@ -513,11 +588,45 @@ pub fn exponent_lines(rows: &[Row]) -> String {
     s
 }
 
+/// A row's peak heap in phase `name`, in MB (NaN if it did not run).
+fn heap_of(r: &Row, name: &str) -> f64 {
+    r.heap_mb.iter().find(|(k, _)| k == name).map_or(f64::NAN, |(_, m)| *m)
+}
+
+/// The memory lines that follow the exponents: the peak heap of each phase,
+/// and the largest per unknown.
+pub fn memory_lines(rows: &[Row]) -> String {
+    let mut s = format!(
+        "
+peak heap per phase (MB; the case's mesh included), and the largest of them per unknown
+         {:>3} {:>2} {:>9}",
+        "dim", "p", "unknowns"
+    );
+    for name in PHASES {
+        let _ = write!(s, " {name:>10}");
+    }
+    let _ = writeln!(s, " {:>10}", "KB/unknown");
+    for r in rows.iter().filter(|r| r.failure.is_none()) {
+        let _ = write!(s, "{:>3} {:>2} {:>9}", r.dim, r.order, r.unknowns);
+        for name in PHASES {
+            let m = heap_of(r, name);
+            let _ = write!(s, " {:>10}", if m.is_finite() { format!("{m:.1}") } else { "-".into() });
+        }
+        let top = r.heap_mb.iter().map(|(_, m)| *m).fold(f64::NAN, f64::max);
+        let _ = writeln!(s, " {:>10.2}", top * 1024.0 / r.unknowns.max(1) as f64);
+    }
+    s
+}
+
 /// The table as CSV (one header line, one line per row; seconds as given).
 pub fn csv(rows: &[Row]) -> String {
     let mut s = "dim,p,size,cells,nodes,unknowns,solver,iterations,elevate_project_s,assembly_s,setup_s,solve_s,\
-                 quality_s,total_s,wall_s,peak_mb,min_q3,status\n"
+                 quality_s,total_s,wall_s,peak_mb,min_q3,status"
         .to_string();
+    for name in PHASES {
+        let _ = write!(s, ",heap_{name}_mb");
+    }
+    s.push('\n');
     let f = |x: f64| if x.is_finite() { format!("{x}") } else { String::new() };
     for r in rows {
         let _ = writeln!(
@@ -542,6 +651,11 @@ pub fn csv(rows: &[Row]) -> String {
             f(r.min_q3),
             r.failure.as_ref().map_or("ok".to_string(), |w| format!("\"failed: {}\"", w.replace('"', "'")))
         );
+        s.pop();
+        for name in PHASES {
+            let _ = write!(s, ",{}", f(heap_of(r, name)));
+        }
+        s.push('\n');
     }
     s
 }
@@ -575,6 +689,7 @@ pub fn cmd_bench(argv: &[String]) -> Result<()> {
         let _ = std::io::Write::flush(&mut std::io::stdout());
     })?;
     print!("{}", exponent_lines(&rows));
+    print!("{}", memory_lines(&rows));
     eprintln!("bench: {} runs in {:.1} s", rows.len(), start.elapsed().as_secs_f64());
     if let Some(p) = csv_path {
         write_text_atomic(p, &csv(&rows))?;
@@ -613,6 +728,7 @@ mod tests {
             total: 1.9,
             wall: f64::NAN,
             peak_mb: 123.4,
+            heap_mb: vec![("prepare".into(), 1.5), ("increments".into(), 99.0)],
             min_q3: 0.71,
             failure: None,
         };

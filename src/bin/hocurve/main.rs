@@ -16,7 +16,12 @@
 //! would double the build time of the binary for little gain.
 
 mod bench;
+mod heap;
 mod study;
+
+/// Counts the heap in use, for `hocurve bench`'s memory per phase.
+#[global_allocator]
+static ALLOCATOR: heap::Counting = heap::Counting;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
