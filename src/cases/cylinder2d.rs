@@ -143,6 +143,50 @@ pub fn annulus_2d(r_in: f64, r_out: f64, n_around: usize, n_radial: usize) -> Ca
     }
 }
 
+/// Boundary layers on the unit circle: `n_around` uniform divisions (at
+/// least 3) and `n_layers` layers whose thicknesses grow by `growth`, the
+/// first one the chord between two rays divided by `stretching`, so that
+/// the first layer's quads have chord / height = `stretching`; each quad is
+/// split into two triangles. The 2D counterpart of
+/// [`super::sphere_layers_3d`]: stretching 1 and growth 1 give the
+/// isotropic mesh of the same size.
+///
+/// Tags: the unit circle 1, the outer circle 2, both in the projector.
+///
+/// # Panics
+/// Unless `stretching` ≥ 1 and `growth` ≥ 1 (finite) and `n_layers` ≥ 1.
+pub fn circle_layers_2d(n_around: usize, n_layers: usize, stretching: f64, growth: f64) -> Case {
+    assert!(stretching.is_finite() && stretching >= 1.0, "stretching must be finite and >= 1, got {stretching}");
+    assert!(growth.is_finite() && growth >= 1.0, "growth must be finite and >= 1, got {growth}");
+    assert!(n_layers >= 1, "at least one layer");
+    let n = n_around.max(3);
+    let chord = 2.0 * (PI / n as f64).sin();
+    let mut radius = vec![1.0];
+    for k in 0..n_layers {
+        radius.push(radius[k] + chord / stretching * growth.powi(k as i32));
+    }
+    let position = |i: usize, k: usize| -> [f64; 2] {
+        let (s, c) = (2.0 * PI * i as f64 / n as f64).sin_cos();
+        [radius[k] * c, radius[k] * s]
+    };
+    let mesh = ring_mesh(n, n_layers, position);
+    let outer = radius[n_layers];
+    let mut projector = ShapeProjector::new();
+    projector.insert(1, Shape::Circle { center: [0.0, 0.0], radius: 1.0 });
+    projector.insert(2, Shape::Circle { center: [0.0, 0.0], radius: outer });
+    Case {
+        name: "circle_layers_2d".into(),
+        description: format!(
+            "layers on the unit circle: {n} divisions around, {n_layers} layers growing by {growth}, the first = \
+             chord {chord:.4} / {stretching}, out to r = {outer:.4}; {} vertices, {} triangles",
+            mesh.n_vertices(),
+            mesh.n_cells()
+        ),
+        mesh,
+        projector,
+    }
+}
+
 /// Triangle mesh of a ring grid: vertex (i, k), i ∈ 0..n around (periodic),
 /// k ∈ 0..=n_rings outward, index k·n + i. Each quad is split along its
 /// shorter diagonal. Inner ring edges get tag 1, outer ring edges tag 2.
@@ -250,6 +294,29 @@ mod tests {
             let s = first_layer_stretching(&cylinder_channel_2d(64, 10, st).mesh);
             println!("requested stretching {st}: measured {s:.2}");
             assert!((s / st - 1.0).abs() < 0.05, "requested {st}, measured {s}");
+        }
+    }
+
+    #[test]
+    fn circle_layers_are_valid_with_the_stretching_asked() {
+        for (stretching, growth) in [(1.0, 1.0), (100.0, 1.3), (1000.0, 1.3)] {
+            let case = circle_layers_2d(64, 10, stretching, growth);
+            let (min, _, _) = assert_valid(&case.mesh);
+            assert!(min > 0.0);
+            assert_eq!(case.mesh.n_cells(), 2 * 64 * 10);
+            assert_eq!(case.mesh.facet_tags.len(), 2 * 64);
+            // Vertex 0 of ring 1 sits the first layer's height above vertex 0.
+            let chord = 2.0 * (PI / 64.0).sin();
+            let x = case.mesh.vertex(64);
+            let height = x[0].hypot(x[1]) - 1.0;
+            assert!((chord / height / stretching - 1.0).abs() < 1e-9, "{stretching}: {}", chord / height);
+            for tag in [1, 2] {
+                let Some(Shape::Circle { radius, .. }) = case.projector.get(1, tag) else { panic!("tag {tag}") };
+                for v in tagged_vertices(&case.mesh, tag) {
+                    let p = case.mesh.vertex(v);
+                    assert!((p[0].hypot(p[1]) - radius).abs() < 1e-12, "tag {tag}");
+                }
+            }
         }
     }
 

@@ -9,9 +9,11 @@
 //! out of the domain.
 
 pub mod cylinder2d;
+pub mod layers3d;
 pub mod sphere3d;
 
-pub use cylinder2d::{annulus_2d, cylinder_channel_2d};
+pub use cylinder2d::{annulus_2d, circle_layers_2d, cylinder_channel_2d};
+pub use layers3d::sphere_layers_3d;
 pub use sphere3d::{sphere_in_box_3d, spherical_shell_3d};
 
 use crate::geometry::shapes::ShapeProjector;

@@ -50,6 +50,39 @@ fn bench_case(dim: usize, size: usize) -> Result<Case> {
     }
 }
 
+/// Stretchings of `hocurve bench --layers`; 1 is the isotropic mesh the others are compared with.
+pub const LAYER_STRETCHINGS: [f64; 4] = [1.0, 100.0, 300.0, 1000.0];
+
+/// Layers of the boundary-layer cases, and their growth (1 at stretching 1).
+const LAYERS: usize = 23;
+const GROWTH: f64 = 1.3;
+
+/// Size of the boundary-layer cases at order `p`: 512 divisions around the
+/// circle in 2D (92,160 unknowns at p = 2); in 3D the icosphere of level 2
+/// at p = 2 (320 triangles, 22,080 tets, 86,670 unknowns) and of level 1
+/// above (80 triangles, 5,520 tets).
+fn layer_size(dim: usize, p: usize) -> usize {
+    match (dim, p) {
+        (2, _) => 512,
+        (_, 2) => 2,
+        _ => 1,
+    }
+}
+
+/// The boundary-layer case at `stretching` (first-layer edge / height),
+/// [`LAYERS`] layers growing by [`GROWTH`]: in 2D on the unit circle with
+/// `size` divisions around, quads split into triangles; in 3D prisms on the
+/// icosphere of level `size`, split into tets. Stretching 1 (with layers of
+/// equal thickness) is the isotropic mesh of the same size.
+fn layer_case(dim: usize, size: usize, stretching: f64) -> Result<Case> {
+    let growth = if stretching == 1.0 { 1.0 } else { GROWTH };
+    match dim {
+        2 => Ok(cases::circle_layers_2d(size, LAYERS, stretching, growth)),
+        3 => Ok(cases::sphere_layers_3d(size, LAYERS, stretching, growth)),
+        _ => Err(Error::InvalidInput(format!("bench: dimension must be 2 or 3, got {dim}"))),
+    }
+}
+
 /// Unknowns of the ILE system at order `p` on `case`: dim × (nodes not on the
 /// boundary), since every boundary node is prescribed. Counted from the
 /// linear topology: interior vertices, (p−1) nodes per interior edge,
@@ -87,9 +120,14 @@ pub struct Row {
     pub cells: usize,
     pub nodes: usize,
     pub unknowns: usize,
+    /// The boundary-layer case at this stretching ([`layer_case`]), or 0 for
+    /// the series case ([`bench_case`]).
+    pub stretching: f64,
     pub solver: String,
     /// Mean Krylov iterations per linear solve; `None` for a direct solver.
     pub iterations: Option<f64>,
+    /// Solves the first solver did not produce (it fell back).
+    pub fallbacks: usize,
     pub elevate_project: f64,
     pub assembly: f64,
     pub setup: f64,
@@ -114,7 +152,8 @@ impl Row {
     /// separated by spaces, after the word `bench-one`.
     fn to_line(&self) -> String {
         format!(
-            "bench-one dim={} p={} size={} cells={} nodes={} unknowns={} solver={} iterations={} elevate_project={:e} \
+            "bench-one dim={} p={} size={} cells={} nodes={} unknowns={} stretching={} solver={} iterations={} \
+             fallbacks={} elevate_project={:e} \
              assembly={:e} setup={:e} solve={:e} quality={:e} total={:e} peak_mb={:.1} heap_mb={} min_q3={}",
             self.dim,
             self.order,
@@ -122,8 +161,10 @@ impl Row {
             self.cells,
             self.nodes,
             self.unknowns,
+            self.stretching,
             self.solver,
             self.iterations.map_or("-".to_string(), |i| format!("{i:.1}")),
+            self.fallbacks,
             self.elevate_project,
             self.assembly,
             self.setup,
@@ -154,11 +195,13 @@ impl Row {
             cells: int("cells")?,
             nodes: int("nodes")?,
             unknowns: int("unknowns")?,
+            stretching: real("stretching")?,
             solver: get("solver")?.to_string(),
             iterations: match get("iterations")? {
                 "-" => None,
                 v => Some(v.parse().ok()?),
             },
+            fallbacks: int("fallbacks")?,
             elevate_project: real("elevate_project")?,
             assembly: real("assembly")?,
             setup: real("setup")?,
@@ -179,16 +222,18 @@ impl Row {
         })
     }
 
-    fn failed(dim: usize, order: usize, size: usize, unknowns: usize, solver: &str, wall: f64, why: String) -> Row {
+    fn failed(job: &Job, unknowns: usize, solver: &str, wall: f64, why: String) -> Row {
         Row {
-            dim,
-            order,
-            size,
+            dim: job.dim,
+            order: job.order,
+            size: job.size,
             cells: 0,
             nodes: 0,
             unknowns,
+            stretching: job.stretching,
             solver: solver.to_string(),
             iterations: None,
+            fallbacks: 0,
             elevate_project: f64::NAN,
             assembly: f64::NAN,
             setup: f64::NAN,
@@ -273,10 +318,14 @@ fn peak_rss_mb() -> f64 {
 /// [--direct-ordering amd|nd|auto] [--condense on|off]`: curve one case and print one
 /// [`Row::to_line`] on stdout.
 pub fn cmd_bench_one(argv: &[String]) -> Result<()> {
-    let args = Args::parse(argv, &["dim", "order", "size", "increments", "solver", "direct-ordering", "condense"])?;
+    let args = Args::parse(
+        argv,
+        &["dim", "order", "size", "stretching", "increments", "solver", "direct-ordering", "condense"],
+    )?;
     let dim: usize = args.number("dim", 2)?;
     let size: usize = args.number("size", LADDER_2D[0])?;
-    let case = bench_case(dim, size)?;
+    let stretching: f64 = args.number("stretching", 0.0)?;
+    let case = if stretching > 0.0 { layer_case(dim, size, stretching)? } else { bench_case(dim, size)? };
     let mut opts = CurveOptions {
         order: args.number("order", 2)?,
         formulation: Formulation::Ile,
@@ -313,9 +362,12 @@ pub fn cmd_bench_one(argv: &[String]) -> Result<()> {
         cells: r.cells,
         nodes: r.nodes,
         unknowns: r.dofs,
+        stretching,
         solver: r.solves.solver.to_string(),
+        fallbacks: r.solves.fallback.iter().filter(|f| f.is_some()).count(),
         iterations: iterative
             .then(|| r.solves.iterations.iter().sum::<usize>() as f64 / r.solves.iterations.len() as f64),
+
         elevate_project: t.elevate + t.project,
         assembly: t.assembly,
         setup: t.setup,
@@ -340,6 +392,8 @@ pub struct BenchConfig {
     pub max_dofs: usize,
     pub increments: usize,
     pub solver: String,
+    /// The boundary-layer cases at [`LAYER_STRETCHINGS`] instead of the series.
+    pub layers: bool,
 }
 
 fn parse_list(flag: &str, s: &str) -> Result<Vec<usize>> {
@@ -349,13 +403,20 @@ fn parse_list(flag: &str, s: &str) -> Result<Vec<usize>> {
 }
 
 impl BenchConfig {
-    fn from_args(args: &Args, quick: bool) -> Result<BenchConfig> {
+    fn from_args(args: &Args, quick: bool, layers: bool) -> Result<BenchConfig> {
+        let orders = match (quick, layers) {
+            (true, _) => "2,4",
+            (false, true) => "2,3,4",
+            (false, false) => "2,3,4,5,6",
+        };
         let c = BenchConfig {
             dims: parse_list("dims", args.get("dims").unwrap_or("2,3"))?,
-            orders: parse_list("orders", args.get("orders").unwrap_or(if quick { "2,4" } else { "2,3,4,5,6" }))?,
+            orders: parse_list("orders", args.get("orders").unwrap_or(orders))?,
             max_dofs: args.number("max-dofs", if quick { QUICK_MAX_DOFS } else { DEFAULT_MAX_DOFS })?,
             increments: args.number("increments", 1)?,
-            solver: args.get("solver").unwrap_or("auto").to_string(),
+            // The layer cases measure PCG, which `auto` would not run in 2D.
+            solver: args.get("solver").unwrap_or(if layers { "iterative" } else { "auto" }).to_string(),
+            layers,
         };
         if let Some(d) = c.dims.iter().find(|&&d| d != 2 && d != 3) {
             return Err(Error::InvalidInput(format!("--dims: dimension must be 2 or 3, got {d}")));
@@ -372,20 +433,22 @@ impl BenchConfig {
 }
 
 /// Run one case in a child process (this executable, `bench-one`).
-fn run_child(cfg: &BenchConfig, dim: usize, order: usize, size: usize, unknowns: usize) -> Row {
+fn run_child(cfg: &BenchConfig, job: &Job, unknowns: usize) -> Row {
     let start = Instant::now();
     let exe = match std::env::current_exe() {
         Ok(e) => e,
-        Err(e) => return Row::failed(dim, order, size, unknowns, &cfg.solver, 0.0, format!("current_exe: {e}")),
+        Err(e) => return Row::failed(job, unknowns, &cfg.solver, 0.0, format!("current_exe: {e}")),
     };
+    let (dim, order, size) = (job.dim.to_string(), job.order.to_string(), job.size.to_string());
     let out = Command::new(exe)
-        .args(["bench-one", "--dim", &dim.to_string(), "--order", &order.to_string(), "--size", &size.to_string()])
+        .args(["bench-one", "--dim", &dim, "--order", &order, "--size", &size])
+        .args(["--stretching", &job.stretching.to_string()])
         .args(["--increments", &cfg.increments.to_string(), "--solver", &cfg.solver])
         .output();
     let wall = start.elapsed().as_secs_f64();
     let out = match out {
         Ok(o) => o,
-        Err(e) => return Row::failed(dim, order, size, unknowns, &cfg.solver, wall, format!("spawn: {e}")),
+        Err(e) => return Row::failed(job, unknowns, &cfg.solver, wall, format!("spawn: {e}")),
     };
     let stdout = String::from_utf8_lossy(&out.stdout);
     let row = stdout.lines().find_map(Row::from_line);
@@ -407,14 +470,37 @@ fn run_child(cfg: &BenchConfig, dim: usize, order: usize, size: usize, unknowns:
                     None => format!("exit {}: {last}", out.status.code().unwrap_or(-1)),
                 }
             };
-            Row::failed(dim, order, size, unknowns, &cfg.solver, wall, why)
+            Row::failed(job, unknowns, &cfg.solver, wall, why)
         }
     }
+}
+
+/// One case of a bench: the series case of `size`, or the boundary-layer
+/// case at `stretching` (> 0).
+pub struct Job {
+    pub dim: usize,
+    pub order: usize,
+    pub size: usize,
+    pub stretching: f64,
 }
 
 /// Run every series; `on_row` sees each row as it completes.
 pub fn run(cfg: &BenchConfig, mut on_row: impl FnMut(&Row)) -> Result<Vec<Row>> {
     let mut rows = Vec::new();
+    if cfg.layers {
+        for &dim in &cfg.dims {
+            for &order in &cfg.orders {
+                let size = layer_size(dim, order);
+                for stretching in LAYER_STRETCHINGS {
+                    let unknowns = predicted_unknowns(&layer_case(dim, size, stretching)?, order)?;
+                    let row = run_child(cfg, &Job { dim, order, size, stretching }, unknowns);
+                    on_row(&row);
+                    rows.push(row);
+                }
+            }
+        }
+        return Ok(rows);
+    }
     for &dim in &cfg.dims {
         for &p in &cfg.orders {
             let ladder = if dim == 2 { LADDER_2D } else { LADDER_3D };
@@ -423,7 +509,7 @@ pub fn run(cfg: &BenchConfig, mut on_row: impl FnMut(&Row)) -> Result<Vec<Row>> 
                 if unknowns > cfg.max_dofs {
                     break;
                 }
-                let row = run_child(cfg, dim, p, size, unknowns);
+                let row = run_child(cfg, &Job { dim, order: p, size, stretching: 0.0 }, unknowns);
                 on_row(&row);
                 let failed = row.failure.is_some();
                 rows.push(row);
@@ -588,6 +674,40 @@ pub fn exponent_lines(rows: &[Row]) -> String {
     s
 }
 
+/// The lines that follow a `--layers` table: per dimension and order, each
+/// stretching's iterations and time per unknown against the isotropic mesh's.
+pub fn layer_lines(rows: &[Row]) -> String {
+    let mut s = format!(
+        "\nboundary layers against the isotropic mesh (stretching 1) of the same size and order\n\
+         {:>3} {:>2} {:>10} {:>9} {:>7} {:>9} {:>9} {:>10} {:>9} {:>9}\n",
+        "dim", "p", "stretching", "unknowns", "iters", "fallbacks", "total_s", "us/unknown", "iters/iso", "time/iso"
+    );
+    let per_unknown = |r: &Row| 1e6 * r.total / r.unknowns.max(1) as f64;
+    for r in rows {
+        let iso = rows.iter().find(|i| i.dim == r.dim && i.order == r.order && i.stretching == 1.0);
+        let ratio = |f: &dyn Fn(&Row) -> Option<f64>| match (iso.and_then(f), f(r)) {
+            (Some(a), Some(b)) if a > 0.0 && r.failure.is_none() => format!("{:.2}", b / a),
+            _ => "-".into(),
+        };
+        let _ = writeln!(
+            s,
+            "{:>3} {:>2} {:>10} {:>9} {:>7} {:>9} {:>9} {:>10} {:>9} {:>9}{}",
+            r.dim,
+            r.order,
+            r.stretching,
+            r.unknowns,
+            r.iterations.map_or("-".into(), |i| format!("{i:.1}")),
+            r.fallbacks,
+            secs(r.total),
+            if r.total.is_finite() { format!("{:.2}", per_unknown(r)) } else { "-".into() },
+            ratio(&|x: &Row| x.iterations),
+            ratio(&|x: &Row| x.total.is_finite().then(|| per_unknown(x))),
+            r.failure.as_ref().map_or(String::new(), |f| format!("  FAILED: {f}")),
+        );
+    }
+    s
+}
+
 /// A row's peak heap in phase `name`, in MB (NaN if it did not run).
 fn heap_of(r: &Row, name: &str) -> f64 {
     r.heap_mb.iter().find(|(k, _)| k == name).map_or(f64::NAN, |(_, m)| *m)
@@ -664,12 +784,13 @@ pub fn csv(rows: &[Row]) -> String {
 /// [--increments N] [--solver S] [--csv FILE]`.
 pub fn cmd_bench(argv: &[String]) -> Result<()> {
     let quick = argv.iter().any(|a| a == "--quick");
-    let rest: Vec<String> = argv.iter().filter(|a| *a != "--quick").cloned().collect();
+    let layers = argv.iter().any(|a| a == "--layers");
+    let rest: Vec<String> = argv.iter().filter(|a| *a != "--quick" && *a != "--layers").cloned().collect();
     let args = Args::parse(&rest, &["dims", "orders", "max-dofs", "increments", "solver", "csv"])?;
     if let Some(p) = args.positional.first() {
         return Err(Error::InvalidInput(format!("bench takes no positional argument, got '{p}'")));
     }
-    let cfg = BenchConfig::from_args(&args, quick)?;
+    let cfg = BenchConfig::from_args(&args, quick, layers)?;
     let csv_path = args.get("csv").map(Path::new);
     if let Some(p) = csv_path {
         let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
@@ -688,7 +809,11 @@ pub fn cmd_bench(argv: &[String]) -> Result<()> {
         println!("{}", row_line(r));
         let _ = std::io::Write::flush(&mut std::io::stdout());
     })?;
-    print!("{}", exponent_lines(&rows));
+    if cfg.layers {
+        print!("{}", layer_lines(&rows));
+    } else {
+        print!("{}", exponent_lines(&rows));
+    }
     print!("{}", memory_lines(&rows));
     eprintln!("bench: {} runs in {:.1} s", rows.len(), start.elapsed().as_secs_f64());
     if let Some(p) = csv_path {
@@ -718,8 +843,10 @@ mod tests {
             cells: 576,
             nodes: 9000,
             unknowns: 20000,
+            stretching: 300.0,
             solver: "direct".into(),
             iterations: None,
+            fallbacks: 1,
             elevate_project: 0.01,
             assembly: 0.5,
             setup: 0.02,

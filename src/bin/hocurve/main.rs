@@ -7,7 +7,7 @@
 //!               [--adaptive on|off] [--max-splits K] --output OUT.msh|OUT.vtu [--report R.json]
 //! hocurve quality MESH.msh [--report R.json]
 //! hocurve study [--quick] [--output-dir DIR]
-//! hocurve bench [--quick] [--dims 2,3] [--orders 2,3,4,5,6] [--max-dofs N] [--increments N]
+//! hocurve bench [--quick] [--layers] [--dims 2,3] [--orders 2,3,4,5,6] [--max-dofs N] [--increments N]
 //!               [--solver S] [--csv FILE]
 //! ```
 //! `bench` (module [`bench`]) re-runs this executable as the hidden
@@ -97,15 +97,19 @@ USAGE:
       Sweep Poisson's ratio, p and ILE/CIL/NONLINEAR on built-in 2D cases; print
       a min-Q3 table, write DIR/study.csv and DIR/study-<case>-p<P>.svg.
 
-  hocurve bench [--quick] [--dims 2,3] [--orders 2,3,4,5,6] [--max-dofs N]
-                [--increments N] [--solver auto|direct] [--csv FILE]
+  hocurve bench [--quick] [--layers] [--dims 2,3] [--orders 2,3,4,5,6] [--max-dofs N]
+                [--increments N] [--solver auto|direct|iterative] [--csv FILE]
       Time ILE on built-in 2D and 3D cases of growing size at each order, each
       case in its own process: print one row per case (cells, nodes, unknowns,
       solver, mean iterations per solve, seconds of elevate+project, assembly,
       setup, solve, quality, total, peak memory in MB, min Q3), then the
-      measured exponents of solve and total time against unknowns. A series
-      stops before its unknowns pass --max-dofs (default 210000, about ten
-      minutes on two cores; --quick: orders 2,4 up to 60000, under a minute).
+      measured exponents of solve and total time against unknowns, and the
+      peak heap of each phase. A series stops before its unknowns pass
+      --max-dofs (default 210000, about ten minutes on two cores; --quick:
+      orders 2,4 up to 60000, under a minute). --layers: boundary layers
+      instead (23 layers on a circle, prisms on a sphere split into tets) at
+      stretching 1, 100, 300 and 1000, orders 2,3,4, PCG by default; the
+      iterations and time per unknown against the isotropic mesh.
 ";
 
 fn main() -> ExitCode {
