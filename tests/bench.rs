@@ -45,9 +45,21 @@ fn bench_minimal_run_prints_well_formed_rows_and_a_finite_exponent() {
         assert!(peak_mb > 1.0, "peak memory of the child is measured");
     }
 
+    let mut lines = lines.skip_while(|l| !l.starts_with("dim")).skip(1);
     let exponents: Vec<Vec<&str>> =
-        lines.skip_while(|l| !l.starts_with("dim")).skip(1).map(|l| l.split_whitespace().collect()).collect();
+        lines.by_ref().take_while(|l| !l.trim().is_empty()).map(|l| l.split_whitespace().collect()).collect();
     assert_eq!(exponents.len(), 2, "{stdout}");
+    // Then the peak heap of each phase: one line per row, every phase measured.
+    let memory: Vec<Vec<&str>> =
+        lines.skip_while(|l| !l.trim_start().starts_with("dim")).skip(1).map(|l| l.split_whitespace().collect()).collect();
+    assert_eq!(memory.len(), rows.len(), "{stdout}");
+    for m in &memory {
+        let heap: Vec<f64> = m[3..].iter().map(|v| v.parse().unwrap_or(f64::NAN)).collect();
+        assert_eq!(heap.len(), 7, "six phases and KB per unknown: {m:?}");
+        assert!(heap.iter().all(|h| h.is_finite() && *h > 0.0), "{m:?}");
+        // The elastic stage holds the matrix: it needs more than the preparation.
+        assert!(heap[3] > heap[0], "{m:?}");
+    }
     let two_d = exponents.iter().find(|e| e[0] == "2" && e[1] == "3").unwrap();
     for v in &two_d[3..5] {
         let slope: f64 = v.parse().unwrap_or_else(|_| panic!("2D exponent '{v}' is not a number:\n{stdout}"));
@@ -67,4 +79,33 @@ fn bench_rejects_a_bad_order_before_running() {
     let out = Command::new(env!("CARGO_BIN_EXE_hocurve")).args(["bench", "--orders", "2,11"]).output().unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--orders"));
+}
+
+#[test]
+fn bench_layers_compares_each_stretching_with_the_isotropic_mesh() {
+    let out = Command::new(env!("CARGO_BIN_EXE_hocurve"))
+        .args(["bench", "--layers", "--dims", "2", "--orders", "2"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "stdout:\n{stdout}\nstderr:\n{}", String::from_utf8_lossy(&out.stderr));
+    let rows: Vec<Vec<&str>> = stdout
+        .lines()
+        .skip_while(|l| !l.starts_with("boundary layers"))
+        .skip(2)
+        .take_while(|l| !l.trim().is_empty())
+        .map(|l| l.split_whitespace().collect())
+        .collect();
+    let stretchings: Vec<&str> = rows.iter().map(|r| r[2]).collect();
+    assert_eq!(stretchings, ["1", "100", "300", "1000"], "{stdout}");
+    for r in &rows {
+        assert_eq!(r.len(), 10, "{r:?}");
+        assert_eq!(r[3], rows[0][3], "the same mesh size at every stretching: {r:?}");
+        let iterations: f64 = r[4].parse().unwrap_or_else(|_| panic!("PCG ran: {r:?}"));
+        assert!(iterations > 0.0);
+        assert_eq!(r[5], "0", "no fallback: {r:?}");
+        let ratio: f64 = r[8].parse().unwrap();
+        assert!((ratio - iterations / rows[0][4].parse::<f64>().unwrap()).abs() < 0.01, "{r:?}");
+    }
+    assert_eq!(rows[0][8], "1.00");
 }

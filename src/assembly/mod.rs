@@ -194,7 +194,13 @@ impl DofMap {
             .collect();
         let mut col_ptr = Vec::with_capacity(self.n_system + 1);
         col_ptr.push(0);
-        let mut row_idx = Vec::new();
+        // Allocated to its length: grown by pushing, its capacity was 1.5
+        // times that on the bench's 3D p = 4 case (200 bytes per unknown
+        // held through the whole solve). Each node's own entry holds the
+        // lower triangle of its block, each neighbour's the whole block.
+        let len: usize =
+            columns.iter().filter(|nb| !nb.is_empty()).map(|nb| (nb.len() - 1) * dim * dim + dim * (dim + 1) / 2).sum();
+        let mut row_idx = Vec::with_capacity(len);
         for (n, nb) in columns.iter().enumerate() {
             if nb.is_empty() {
                 continue;
@@ -209,6 +215,7 @@ impl DofMap {
                 col_ptr.push(row_idx.len());
             }
         }
+        debug_assert_eq!(row_idx.len(), len);
         SymmetricCsc { n: self.n_system, col_ptr, row_idx }
     }
 }
