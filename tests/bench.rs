@@ -50,8 +50,11 @@ fn bench_minimal_run_prints_well_formed_rows_and_a_finite_exponent() {
         lines.by_ref().take_while(|l| !l.trim().is_empty()).map(|l| l.split_whitespace().collect()).collect();
     assert_eq!(exponents.len(), 2, "{stdout}");
     // Then the peak heap of each phase: one line per row, every phase measured.
-    let memory: Vec<Vec<&str>> =
-        lines.skip_while(|l| !l.trim_start().starts_with("dim")).skip(1).map(|l| l.split_whitespace().collect()).collect();
+    let memory: Vec<Vec<&str>> = lines
+        .skip_while(|l| !l.trim_start().starts_with("dim"))
+        .skip(1)
+        .map(|l| l.split_whitespace().collect())
+        .collect();
     assert_eq!(memory.len(), rows.len(), "{stdout}");
     for m in &memory {
         let heap: Vec<f64> = m[3..].iter().map(|v| v.parse().unwrap_or(f64::NAN)).collect();

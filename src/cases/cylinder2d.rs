@@ -156,15 +156,9 @@ pub fn annulus_2d(r_in: f64, r_out: f64, n_around: usize, n_radial: usize) -> Ca
 /// # Panics
 /// Unless `stretching` ≥ 1 and `growth` ≥ 1 (finite) and `n_layers` ≥ 1.
 pub fn circle_layers_2d(n_around: usize, n_layers: usize, stretching: f64, growth: f64) -> Case {
-    assert!(stretching.is_finite() && stretching >= 1.0, "stretching must be finite and >= 1, got {stretching}");
-    assert!(growth.is_finite() && growth >= 1.0, "growth must be finite and >= 1, got {growth}");
-    assert!(n_layers >= 1, "at least one layer");
     let n = n_around.max(3);
     let chord = 2.0 * (PI / n as f64).sin();
-    let mut radius = vec![1.0];
-    for k in 0..n_layers {
-        radius.push(radius[k] + chord / stretching * growth.powi(k as i32));
-    }
+    let radius = super::layer_radii(chord, n_layers, stretching, growth);
     let position = |i: usize, k: usize| -> [f64; 2] {
         let (s, c) = (2.0 * PI * i as f64 / n as f64).sin_cos();
         [radius[k] * c, radius[k] * s]

@@ -120,9 +120,6 @@ fn split_prism(b: [usize; 3], t: [usize; 3]) -> [[usize; 4]; 3] {
 /// # Panics
 /// Unless `stretching` ≥ 1 and `growth` ≥ 1 (finite) and `n_layers` ≥ 1.
 pub fn sphere_layers_3d(level: usize, n_layers: usize, stretching: f64, growth: f64) -> Case {
-    assert!(stretching.is_finite() && stretching >= 1.0, "stretching must be finite and >= 1, got {stretching}");
-    assert!(growth.is_finite() && growth >= 1.0, "growth must be finite and >= 1, got {growth}");
-    assert!(n_layers >= 1, "at least one layer");
     let (surface, triangles) = icosphere(level);
     let edges: f64 = triangles
         .iter()
@@ -130,11 +127,7 @@ pub fn sphere_layers_3d(level: usize, n_layers: usize, stretching: f64, growth: 
         .map(|(a, b)| (0..3).map(|k| (surface[a][k] - surface[b][k]).powi(2)).sum::<f64>().sqrt())
         .sum::<f64>()
         / (3 * triangles.len()) as f64;
-    let first = edges / stretching;
-    let mut radius = vec![1.0];
-    for k in 0..n_layers {
-        radius.push(radius[k] + first * growth.powi(k as i32));
-    }
+    let radius = super::layer_radii(edges, n_layers, stretching, growth);
     let ns = surface.len();
     let mut mesh = LinearMesh { dim: 3, ..Default::default() };
     for &r in &radius {

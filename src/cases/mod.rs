@@ -40,6 +40,22 @@ pub(crate) fn signed_measure(mesh: &LinearMesh, cell: &[usize]) -> f64 {
     crate::mesh::topology::signed_measure(mesh.dim, &p) / factorial
 }
 
+/// Radii of boundary layers on a unit circle or sphere: 1, then `n_layers`
+/// layers whose thicknesses grow by `growth` from `edge / stretching`.
+///
+/// # Panics
+/// Unless `stretching` ≥ 1 and `growth` ≥ 1 (finite) and `n_layers` ≥ 1.
+pub(crate) fn layer_radii(edge: f64, n_layers: usize, stretching: f64, growth: f64) -> Vec<f64> {
+    assert!(stretching.is_finite() && stretching >= 1.0, "stretching must be finite and >= 1, got {stretching}");
+    assert!(growth.is_finite() && growth >= 1.0, "growth must be finite and >= 1, got {growth}");
+    assert!(n_layers >= 1, "at least one layer");
+    let mut radius = vec![1.0];
+    for k in 0..n_layers {
+        radius.push(radius[k] + edge / stretching * growth.powi(k as i32));
+    }
+    radius
+}
+
 /// Append `cell` to the mesh, swapping its last two vertices if needed so
 /// that its signed measure is positive.
 pub(crate) fn push_cell(mesh: &mut LinearMesh, mut cell: Vec<usize>) {

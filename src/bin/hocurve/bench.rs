@@ -367,7 +367,6 @@ pub fn cmd_bench_one(argv: &[String]) -> Result<()> {
         fallbacks: r.solves.fallback.iter().filter(|f| f.is_some()).count(),
         iterations: iterative
             .then(|| r.solves.iterations.iter().sum::<usize>() as f64 / r.solves.iterations.len() as f64),
-
         elevate_project: t.elevate + t.project,
         assembly: t.assembly,
         setup: t.setup,
