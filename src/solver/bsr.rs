@@ -90,48 +90,53 @@ impl BlockRows {
     }
 }
 
-impl BlockSym32 {
-    /// Symbolic set-up from the lower triangle `pattern`, whose unknowns come
-    /// in consecutive groups of `b` (one group per node) and whose column
-    /// (J, j) lists, in order, rows (J, j..b) and then the `b` rows of every
-    /// later coupled node: the layout of `assembly::DofMap::pattern`.
-    pub fn try_new(pattern: &SymmetricCsc, b: usize) -> Result<BlockSym32> {
-        let n = pattern.n;
-        if !(1..=3).contains(&b) || !n.is_multiple_of(b) {
+/// The node lists of the block columns of `pattern`, a lower triangle whose
+/// unknowns come in consecutive groups of `b` (one group per node) and whose
+/// column (J, j) lists, in order, rows (J, j..b) and then the `b` rows of
+/// every later coupled node (the layout of `assembly::DofMap::pattern`): per
+/// node J, the nodes I ≥ J coupled to it, ascending, J first. An error if
+/// the pattern is not in that layout.
+pub fn nodal_blocks(pattern: &SymmetricCsc, b: usize) -> Result<Vec<Vec<u32>>> {
+    let n = pattern.n;
+    if !(1..=3).contains(&b) || !n.is_multiple_of(b) {
+        return Err(Error::solver(SolverFailure::Setup, format!("block matrix: block size {b} does not divide {n}")));
+    }
+    let upper: Vec<Vec<u32>> = (0..n / b)
+        .into_par_iter()
+        .map(|j| {
+            let c = j * b;
+            let rows = &pattern.row_idx[pattern.col_ptr[c]..pattern.col_ptr[c + 1]];
+            rows.iter().step_by(b).map(|&r| r / b as u32).collect()
+        })
+        .collect();
+    for (j, nodes) in upper.iter().enumerate() {
+        let ok = nodes.first() == Some(&(j as u32))
+            && nodes.windows(2).all(|w| w[0] < w[1])
+            && (0..b).all(|jj| {
+                let c = j * b + jj;
+                let rows = &pattern.row_idx[pattern.col_ptr[c]..pattern.col_ptr[c + 1]];
+                rows.len() == nodes.len() * b - jj
+                    && rows.iter().enumerate().all(|(t, &r)| {
+                        let t = t + jj;
+                        r as usize == nodes[t / b] as usize * b + t % b
+                    })
+            });
+        if !ok {
             return Err(Error::solver(
                 SolverFailure::Setup,
-                format!("block matrix: block size {b} does not divide {n}"),
+                format!("block matrix: column {} is not in nodal-block layout", j * b),
             ));
         }
-        let n_blocks = n / b;
-        // Upper block rows: the coupled nodes I ≥ J of column J·b.
-        let upper: Vec<Vec<u32>> = (0..n_blocks)
-            .into_par_iter()
-            .map(|j| {
-                let c = j * b;
-                let rows = &pattern.row_idx[pattern.col_ptr[c]..pattern.col_ptr[c + 1]];
-                rows.iter().step_by(b).map(|&r| r / b as u32).collect()
-            })
-            .collect();
-        for (j, nodes) in upper.iter().enumerate() {
-            let ok = nodes.first() == Some(&(j as u32))
-                && nodes.windows(2).all(|w| w[0] < w[1])
-                && (0..b).all(|jj| {
-                    let c = j * b + jj;
-                    let rows = &pattern.row_idx[pattern.col_ptr[c]..pattern.col_ptr[c + 1]];
-                    rows.len() == nodes.len() * b - jj
-                        && rows.iter().enumerate().all(|(t, &r)| {
-                            let t = t + jj;
-                            r as usize == nodes[t / b] as usize * b + t % b
-                        })
-                });
-            if !ok {
-                return Err(Error::solver(
-                    SolverFailure::Setup,
-                    format!("block matrix: column {} is not in nodal-block layout", j * b),
-                ));
-            }
-        }
+    }
+    Ok(upper)
+}
+
+impl BlockSym32 {
+    /// Symbolic set-up from the lower triangle `pattern` in nodal-block
+    /// layout ([`nodal_blocks`]).
+    pub fn try_new(pattern: &SymmetricCsc, b: usize) -> Result<BlockSym32> {
+        let upper = nodal_blocks(pattern, b)?;
+        let n_blocks = upper.len();
         // Lower block rows: transpose of the strictly upper part.
         let mut lower: Vec<Vec<u32>> = vec![Vec::new(); n_blocks];
         for (j, nodes) in upper.iter().enumerate() {

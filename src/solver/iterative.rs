@@ -228,7 +228,7 @@ impl IterativeSolver {
         let fine32 = if params.single_precision_smoother { BlockSym32::try_new(pattern, block).ok() } else { None };
         Ok(IterativeSolver {
             fine32,
-            op: SymmetricOperator::try_new(pattern)?,
+            op: SymmetricOperator::try_new(pattern, block)?,
             block,
             coarse,
             params,
@@ -239,14 +239,13 @@ impl IterativeSolver {
     }
 
     /// Whether `x` solves the system to PCG's tolerance: ‖b − A x‖ ≤ rtol ‖b‖, b ≠ 0.
-    fn solves_already(&mut self, values: &[f64], rhs: &[f64], x: &[f64]) -> bool {
+    fn solves_already(&self, pattern: &SymmetricCsc, values: &[f64], rhs: &[f64], x: &[f64]) -> bool {
         let b = rhs.iter().map(|v| v * v).sum::<f64>().sqrt();
         if b == 0.0 || x.iter().all(|&v| v == 0.0) {
             return false;
         }
-        self.op.update(values);
         let mut r = vec![0.0; rhs.len()];
-        self.op.matvec_into(values, x, &mut r);
+        self.op.with(pattern, values).matvec_into(x, &mut r);
         let r = r.iter().zip(rhs).map(|(ax, b)| (b - ax) * (b - ax)).sum::<f64>().sqrt();
         r <= self.params.pcg.rtol * b
     }
@@ -260,10 +259,9 @@ impl IterativeSolver {
         x: &mut [f64],
         mode: Mode,
     ) -> std::result::Result<usize, Breakdown> {
-        self.op.update(values);
         let start = self.power.take();
         let warm = start.is_some();
-        let exact = WithValues(&self.op, values);
+        let exact = self.op.with(pattern, values);
         let fine: &dyn Operator = match (&mut self.fine32, mode) {
             (Some(f), Mode::Fast) => {
                 f.update(pattern, values);
@@ -272,9 +270,9 @@ impl IterativeSolver {
             _ => &exact,
         };
         let jacobi = diagonal_blocks(pattern, values, self.block)?;
-        let smoother = mode.smoother(fine, &self.op, values, jacobi, self.params.smoother, start)?;
+        let smoother = mode.smoother(fine, exact, jacobi, self.params.smoother, start)?;
         if let Some(c) = &mut self.coarse {
-            mode.update_coarse(c, &self.op, values, self.params.reuse_coarse)?;
+            mode.update_coarse(c, exact, self.params.reuse_coarse)?;
         }
         // A warm-started estimate can miss a mode that the new matrix has
         // and the previous one had not (a nearly degenerate cell): a slow
@@ -286,10 +284,9 @@ impl IterativeSolver {
         let steps = self.params.smoother.power_iterations;
         let mut fresh = None;
         let mut check = eigenvalue_check(checkpoint, &smoother, fine, steps, &mut fresh);
-        let op = &self.op;
         let mut pre = VCycle::new(fine, &smoother, self.coarse.as_mut());
         let it = pcg(
-            &mut |v, y| op.matvec_into(values, v, y),
+            &mut |v, y| exact.matvec_into(v, y),
             &mut |r, z| pre.apply_into(r, z),
             rhs,
             x,
@@ -324,15 +321,9 @@ fn diagonal_blocks(
 
 impl Mode {
     /// Rebuild the coarse levels `c` for `values` unless the fast mode may `reuse` ready ones.
-    fn update_coarse(
-        self,
-        c: &mut Hierarchy,
-        op: &SymmetricOperator,
-        values: &[f64],
-        reuse: bool,
-    ) -> std::result::Result<(), Breakdown> {
+    fn update_coarse(self, c: &mut Hierarchy, a: WithValues, reuse: bool) -> std::result::Result<(), Breakdown> {
         if self == Mode::Safe || !(reuse && c.is_ready()) {
-            c.try_update_with(op, values, self == Mode::Safe).map_err(Breakdown::setup)?;
+            c.try_update_with(a, self == Mode::Safe).map_err(Breakdown::setup)?;
         }
         Ok(())
     }
@@ -341,15 +332,14 @@ impl Mode {
     fn smoother(
         self,
         fine: &dyn Operator,
-        op: &SymmetricOperator,
-        values: &[f64],
+        a: WithValues,
         jacobi: BlockJacobi,
         params: ChebyshevParams,
         start: Option<Vec<f64>>,
     ) -> std::result::Result<Chebyshev, Breakdown> {
         match self {
             Mode::Fast => Chebyshev::try_with_jacobi(fine, jacobi, params, start),
-            Mode::Safe => Chebyshev::try_safe_with_jacobi(op, values, jacobi, params),
+            Mode::Safe => Chebyshev::try_safe_with_jacobi(a, jacobi, params),
         }
         .map_err(Breakdown::setup)
     }
@@ -417,7 +407,7 @@ impl LinearSolver for IterativeSolver {
     fn solve(&mut self, pattern: &SymmetricCsc, values: &[f64], rhs: &[f64], x: &mut [f64]) -> Result<SolveStats> {
         // A start that already meets the tolerance (a step retried from the
         // same matrix) needs no preconditioner.
-        if self.solves_already(values, rhs, x) {
+        if self.solves_already(pattern, values, rhs, x) {
             return Ok(SolveStats { iterations: 0, solved_by: SolvedBy::Pcg, fallback: None });
         }
         let x0 = x.to_vec();

@@ -3,13 +3,12 @@
 //!
 //! [`SymmetricOperator`] is built once per pattern from the lower triangle
 //! ([`SymmetricCsc`]): row r of the full matrix is column r of the lower
-//! triangle (the diagonal and everything right of it, read in place from the
-//! caller's values) plus the strictly lower part of row r, which is the
-//! transpose of the stored triangle and is copied, per matrix, into a
-//! compressed-row array through a position map computed once. Indices are
-//! `u32`. Memory per stored entry: 4 (column index), 8 (copied lower value)
-//! and 4 (map) bytes on top of the caller's pattern and values, against 24
-//! for an explicit full CSR with a map.
+//! triangle plus the strictly lower part of row r, the transpose of entries
+//! stored in earlier columns, read in place from the caller's values. With
+//! nodes of b unknowns in consecutive rows (the layout of the assembled
+//! systems), one (column, offset) pair of `u32` per b × b block locates
+//! them: 8 bytes per block of 9 entries in 3D, against 16 per entry for a
+//! compressed-row copy of the transpose with its position map.
 //!
 //! Vector reductions run over fixed chunks and are summed in chunk order, so
 //! results do not depend on the number of threads.
@@ -22,25 +21,34 @@ use crate::{Error, Result, SolverFailure};
 /// Rows per parallel task of the matrix-vector product and vector updates.
 const CHUNK: usize = 2048;
 
-/// The full symmetric matrix of a lower-triangle pattern, for y = A x in parallel.
+/// The transpose structure of a lower-triangle pattern, for the rows of the
+/// full symmetric matrix: y = A x in parallel, and row-wise set-up.
+///
+/// Row r = (I, ii) of node I is, in ascending columns: the strictly lower
+/// blocks (I, J < I), each the transpose of block (J, I), stored in columns
+/// J·b..J·b + b; the strictly lower part of the diagonal block; and column r
+/// of the triangle. Only the positions of the first are kept here, one
+/// (J, offset) pair per block.
 #[derive(Debug, Clone)]
 pub struct SymmetricOperator {
     n: usize,
-    /// Column r of the lower triangle = diagonal and upper part of row r.
-    upper_ptr: Vec<usize>,
-    upper_col: Vec<u32>,
-    /// Strictly lower part of each row, compressed rows.
+    nnz: usize,
+    /// Unknowns per node: the block size asked for when the pattern is in
+    /// nodal-block layout ([`super::bsr::nodal_blocks`]), else 1.
+    b: usize,
+    /// Per node I, its strictly lower blocks, J ascending (compressed rows).
     lower_ptr: Vec<usize>,
+    /// J of each block.
     lower_col: Vec<u32>,
-    /// Position in the lower-triangle value array of each strictly lower entry.
-    lower_src: Vec<u32>,
-    /// Values of the strictly lower part of the current matrix.
-    lower_val: Vec<f64>,
+    /// Position of row I·b in column J·b, from the column's start: entry
+    /// (I·b + ii, J·b + jj) is at col_ptr[J·b + jj] + offset − jj + ii.
+    lower_off: Vec<u32>,
 }
 
 impl SymmetricOperator {
-    /// The symbolic transpose of `pattern` (once per pattern).
-    pub fn try_new(pattern: &SymmetricCsc) -> Result<SymmetricOperator> {
+    /// The symbolic transpose of `pattern` (once per pattern), by nodes of
+    /// `block` unknowns when the pattern is in that layout.
+    pub fn try_new(pattern: &SymmetricCsc, block: usize) -> Result<SymmetricOperator> {
         let n = pattern.n;
         if n >= u32::MAX as usize || pattern.nnz() >= u32::MAX as usize {
             return Err(Error::solver(
@@ -48,100 +56,126 @@ impl SymmetricOperator {
                 format!("matrix too large for 32-bit indices ({n} rows, {} entries)", pattern.nnz()),
             ));
         }
-        let upper_col = pattern.row_idx.clone();
-        let mut lower_ptr = vec![0usize; n + 1];
-        for c in 0..n {
-            for &r in &pattern.row_idx[pattern.col_ptr[c]..pattern.col_ptr[c + 1]] {
-                let r = r as usize;
-                if r != c {
-                    lower_ptr[r + 1] += 1;
-                }
+        let nodal = if block > 1 { super::bsr::nodal_blocks(pattern, block).ok() } else { None };
+        let (b, columns) = match nodal {
+            Some(upper) => (block, upper),
+            None => (1, (0..n).map(|c| pattern.row_idx[pattern.col_ptr[c]..pattern.col_ptr[c + 1]].to_vec()).collect()),
+        };
+        let mut lower_ptr = vec![0usize; columns.len() + 1];
+        for (j, nodes) in columns.iter().enumerate() {
+            for &i in nodes.iter().filter(|&&i| i as usize > j) {
+                lower_ptr[i as usize + 1] += 1;
             }
         }
-        for r in 0..n {
-            lower_ptr[r + 1] += lower_ptr[r];
+        for i in 0..columns.len() {
+            lower_ptr[i + 1] += lower_ptr[i];
         }
-        let m = lower_ptr[n];
+        let m = lower_ptr[columns.len()];
         let mut fill = lower_ptr.clone();
-        let mut lower_col = vec![0u32; m];
-        let mut lower_src = vec![0u32; m];
-        for c in 0..n {
-            for k in pattern.col_ptr[c]..pattern.col_ptr[c + 1] {
-                let r = pattern.row_idx[k] as usize;
-                if r != c {
-                    lower_col[fill[r]] = c as u32;
-                    lower_src[fill[r]] = k as u32;
-                    fill[r] += 1;
-                }
+        let (mut lower_col, mut lower_off) = (vec![0u32; m], vec![0u32; m]);
+        for (j, nodes) in columns.iter().enumerate() {
+            for (t, &i) in nodes.iter().enumerate().filter(|&(_, &i)| i as usize > j) {
+                let k = &mut fill[i as usize];
+                lower_col[*k] = j as u32;
+                lower_off[*k] = (t * b) as u32;
+                *k += 1;
             }
         }
-        Ok(SymmetricOperator {
-            n,
-            upper_ptr: pattern.col_ptr.clone(),
-            upper_col,
-            lower_ptr,
-            lower_col,
-            lower_src,
-            lower_val: vec![0.0; m],
-        })
+        Ok(SymmetricOperator { n, nnz: pattern.nnz(), b, lower_ptr, lower_col, lower_off })
     }
 
+    /// The matrix of this pattern with lower-triangle `values`.
+    pub fn with<'a>(&'a self, pattern: &'a SymmetricCsc, values: &'a [f64]) -> WithValues<'a> {
+        assert!(pattern.n == self.n && pattern.nnz() == self.nnz && values.len() == self.nnz, "pattern mismatch");
+        WithValues { op: self, pattern, values }
+    }
+}
+
+/// A symmetric matrix: a [`SymmetricOperator`] with its pattern and
+/// lower-triangle values.
+#[derive(Clone, Copy)]
+pub struct WithValues<'a> {
+    op: &'a SymmetricOperator,
+    pattern: &'a SymmetricCsc,
+    values: &'a [f64],
+}
+
+impl<'a> WithValues<'a> {
     pub fn n(&self) -> usize {
-        self.n
+        self.op.n
     }
 
-    /// Copy the strictly lower part of the matrix with lower-triangle `values`.
-    pub fn update(&mut self, values: &[f64]) {
-        let src = &self.lower_src;
-        self.lower_val.par_chunks_mut(CHUNK * 16).enumerate().for_each(|(i, out)| {
-            let s = &src[i * CHUNK * 16..i * CHUNK * 16 + out.len()];
-            for (o, &k) in out.iter_mut().zip(s) {
-                *o = values[k as usize];
-            }
-        });
+    pub fn pattern(&self) -> &'a SymmetricCsc {
+        self.pattern
     }
 
-    /// Entries (column, value) of row `r` of the full matrix, given the
-    /// lower-triangle `values` of the matrix last passed to [`Self::update`].
+    /// The lower-triangle values.
+    pub fn values(&self) -> &'a [f64] {
+        self.values
+    }
+
+    /// Entries (column, value) of row `r`, in ascending columns.
     #[inline]
-    pub fn row<'a>(&'a self, values: &'a [f64], r: usize) -> impl Iterator<Item = (usize, f64)> + 'a {
-        let (ls, le) = (self.lower_ptr[r], self.lower_ptr[r + 1]);
-        let (us, ue) = (self.upper_ptr[r], self.upper_ptr[r + 1]);
-        let lower = self.lower_col[ls..le].iter().zip(&self.lower_val[ls..le]).map(|(&c, &v)| (c as usize, v));
-        let upper = self.upper_col[us..ue].iter().zip(&values[us..ue]).map(|(&c, &v)| (c as usize, v));
-        lower.chain(upper)
+    pub fn row(&self, r: usize) -> impl Iterator<Item = (usize, f64)> + 'a {
+        let (op, pattern, values) = (self.op, self.pattern, self.values);
+        let (b, cp) = (op.b, &pattern.col_ptr);
+        let (node, ii) = (r / b, r % b);
+        let blocks = (op.lower_ptr[node]..op.lower_ptr[node + 1]).flat_map(move |k| {
+            let (j, off) = (op.lower_col[k] as usize, op.lower_off[k] as usize);
+            (0..b).map(move |jj| (j * b + jj, values[cp[j * b + jj] + off - jj + ii]))
+        });
+        let diagonal = (0..ii).map(move |jj| (node * b + jj, values[cp[node * b + jj] + ii - jj]));
+        let column = (cp[r]..cp[r + 1]).map(move |k| (pattern.row_idx[k] as usize, values[k]));
+        blocks.chain(diagonal).chain(column)
     }
 
-    /// y = A x, where `values` are the lower-triangle values of the matrix last
-    /// passed to [`Self::update`].
-    pub fn matvec_into(&self, values: &[f64], x: &[f64], y: &mut [f64]) {
-        y.par_chunks_mut(CHUNK).enumerate().for_each(|(i, yc)| {
-            let r0 = i * CHUNK;
-            for (j, yr) in yc.iter_mut().enumerate() {
-                let r = r0 + j;
-                let mut s = 0.0;
-                for k in self.lower_ptr[r]..self.lower_ptr[r + 1] {
-                    s += self.lower_val[k] * x[self.lower_col[k] as usize];
+    /// y = A x; each row summed in ascending columns, whatever the threads.
+    pub fn matvec_into(&self, x: &[f64], y: &mut [f64]) {
+        match self.op.b {
+            1 => self.matvec_nodes::<1>(x, y),
+            2 => self.matvec_nodes::<2>(x, y),
+            _ => self.matvec_nodes::<3>(x, y),
+        }
+    }
+
+    fn matvec_nodes<const B: usize>(&self, x: &[f64], y: &mut [f64]) {
+        let (op, cp, ri, values) = (self.op, &self.pattern.col_ptr, &self.pattern.row_idx, self.values);
+        y.par_chunks_mut(CHUNK / B * B).enumerate().for_each(|(t, yc)| {
+            for (di, yn) in yc.chunks_exact_mut(B).enumerate() {
+                let node = t * (CHUNK / B) + di;
+                let mut acc = [0.0f64; B];
+                for k in op.lower_ptr[node]..op.lower_ptr[node + 1] {
+                    let (j, off) = (op.lower_col[k] as usize, op.lower_off[k] as usize);
+                    for jj in 0..B {
+                        let c = j * B + jj;
+                        let (at, xc) = (cp[c] + off - jj, x[c]);
+                        for (ii, a) in acc.iter_mut().enumerate() {
+                            *a += values[at + ii] * xc;
+                        }
+                    }
                 }
-                for k in self.upper_ptr[r]..self.upper_ptr[r + 1] {
-                    s += values[k] * x[self.upper_col[k] as usize];
+                for (ii, a) in acc.iter_mut().enumerate() {
+                    for jj in 0..ii {
+                        let c = node * B + jj;
+                        *a += values[cp[c] + ii - jj] * x[c];
+                    }
+                    let r = node * B + ii;
+                    for k in cp[r]..cp[r + 1] {
+                        *a += values[k] * x[ri[k] as usize];
+                    }
                 }
-                *yr = s;
+                yn.copy_from_slice(&acc);
             }
         });
     }
 }
 
-/// A [`SymmetricOperator`] with the lower-triangle values of one matrix.
-#[derive(Clone, Copy)]
-pub struct WithValues<'a>(pub &'a SymmetricOperator, pub &'a [f64]);
-
 impl super::bsr::Operator for WithValues<'_> {
     fn n(&self) -> usize {
-        self.0.n
+        self.op.n
     }
     fn apply_into(&self, x: &[f64], y: &mut [f64]) {
-        self.0.matvec_into(self.1, x, y)
+        self.matvec_into(x, y)
     }
 }
 
@@ -500,27 +534,27 @@ impl BlockJacobi {
         BlockFactor { block: b, r }
     }
 
-    /// ‖D⁻¹A‖_∞, the largest absolute row sum of D⁻¹A for the matrix held by
-    /// `op` with lower-triangle `values` (D its blocks inverted here): an
+    /// ‖D⁻¹A‖_∞, the largest absolute row sum of D⁻¹A for the matrix `a`
+    /// (D its blocks inverted here): an
     /// upper bound of every eigenvalue of D⁻¹A (Gershgorin), computed in
     /// double precision from the entries, so it cannot miss a mode the way a
     /// power iteration can.
-    pub fn row_sum_bound(&self, op: &SymmetricOperator, values: &[f64]) -> f64 {
+    pub fn row_sum_bound(&self, a: WithValues) -> f64 {
         let b = self.block;
         let bb = b * b;
-        let n = op.n();
+        let n = a.n();
         (0..n / b)
             .into_par_iter()
             .map_init(
                 || (vec![[0.0f64; 3]; n], vec![false; n], Vec::<usize>::new()),
                 |(acc, seen, list), i| {
                     for k in 0..b {
-                        for (c, a) in op.row(values, i * b + k) {
+                        for (c, v) in a.row(i * b + k) {
                             if !seen[c] {
                                 seen[c] = true;
                                 list.push(c);
                             }
-                            acc[c][k] += a;
+                            acc[c][k] += v;
                         }
                     }
                     let m = &self.inv[i * bb..(i + 1) * bb];
@@ -638,24 +672,32 @@ pub(crate) mod tests {
     #[test]
     fn symmetric_operator_matches_the_serial_product() {
         let (a, v) = grid_laplacian(30, 3);
-        let mut op = SymmetricOperator::try_new(&a).unwrap();
-        op.update(&v);
-        let x: Vec<f64> = (0..a.n).map(|i| (i as f64 * 0.77).cos()).collect();
-        let mut y = vec![0.0; a.n];
-        op.matvec_into(&v, &x, &mut y);
-        let y_ref = a.sym_matvec(&v, &x);
-        for (p, q) in y.iter().zip(&y_ref) {
-            assert!((p - q).abs() < 1e-12);
+        // By nodes of 3 and, with block 1, by single unknowns.
+        for block in [3, 1] {
+            let op = SymmetricOperator::try_new(&a, block).unwrap();
+            assert_eq!(op.b, block);
+            let m = op.with(&a, &v);
+            let x: Vec<f64> = (0..a.n).map(|i| (i as f64 * 0.77).cos()).collect();
+            let mut y = vec![0.0; a.n];
+            m.matvec_into(&x, &mut y);
+            let y_ref = a.sym_matvec(&v, &x);
+            for (p, q) in y.iter().zip(&y_ref) {
+                assert!((p - q).abs() < 1e-12);
+            }
+            for r in [0, 1, 2, 100, 101, 102, a.n - 1] {
+                let row: Vec<(usize, f64)> = m.row(r).collect();
+                assert!(row.windows(2).all(|w| w[0].0 < w[1].0), "row {r}: columns not ascending");
+                let dot: f64 = row.iter().map(|&(c, a)| a * x[c]).sum();
+                assert!((dot - y_ref[r]).abs() < 1e-12, "row {r}");
+            }
         }
-        let row: f64 = op.row(&v, 100).map(|(c, a)| a * x[c]).sum();
-        assert!((row - y_ref[100]).abs() < 1e-12);
     }
 
     #[test]
     fn pcg_matches_the_direct_solver_on_an_spd_matrix() {
         let (a, v) = grid_laplacian(25, 2);
-        let mut op = SymmetricOperator::try_new(&a).unwrap();
-        op.update(&v);
+        let op = SymmetricOperator::try_new(&a, 2).unwrap();
+        let m = op.with(&a, &v);
         let x_true: Vec<f64> = (0..a.n).map(|i| (i as f64 * 0.37).sin()).collect();
         let b = a.sym_matvec(&v, &x_true);
         let mut x_direct = b.clone();
@@ -671,7 +713,7 @@ pub(crate) mod tests {
                 jac.apply_into(r, z);
                 Ok(())
             };
-            try_pcg(&mut |x, y| op.matvec_into(&v, x, y), &mut precondition, &b, x, params).unwrap()
+            try_pcg(&mut |x, y| m.matvec_into(x, y), &mut precondition, &b, x, params).unwrap()
         };
         let it = solve(&mut x);
         assert!(it > 5 && it < 500, "{it} iterations");
@@ -688,12 +730,11 @@ pub(crate) mod tests {
         for k in 0..a.n {
             v[a.col_ptr[k]] -= 6.0; // diagonal 4.5 → −1.5: indefinite
         }
-        let mut op = SymmetricOperator::try_new(&a).unwrap();
-        op.update(&v);
+        let op = SymmetricOperator::try_new(&a, 1).unwrap();
         let b = vec![1.0; a.n];
         let mut x = vec![0.0; a.n];
         let r = try_pcg(
-            &mut |x, y| op.matvec_into(&v, x, y),
+            &mut |x, y| op.with(&a, &v).matvec_into(x, y),
             &mut |r, z| {
                 z.copy_from_slice(r);
                 Ok(())
@@ -711,12 +752,12 @@ pub(crate) mod tests {
         use super::super::pmg::{Chebyshev, ChebyshevParams};
         for block in [1, 3] {
             let (a, v) = grid_laplacian(12, block);
-            let mut op = SymmetricOperator::try_new(&a).unwrap();
-            op.update(&v);
-            let bound = BlockJacobi::try_new(&a, &v, block).unwrap().row_sum_bound(&op, &v);
+            let op = SymmetricOperator::try_new(&a, block).unwrap();
+            let m = op.with(&a, &v);
+            let bound = BlockJacobi::try_new(&a, &v, block).unwrap().row_sum_bound(m);
             let params = ChebyshevParams { power_iterations: 60, ..Default::default() };
-            let lambda = Chebyshev::try_new(&op, &a, &v, block, params).unwrap().estimate();
-            let safe = Chebyshev::try_new_safe(&op, &a, &v, block, ChebyshevParams::default()).unwrap();
+            let lambda = Chebyshev::try_new(m, block, params).unwrap().estimate();
+            let safe = Chebyshev::try_new_safe(m, block, ChebyshevParams::default()).unwrap();
             println!("block {block}: lambda_max {lambda:.4}, bound {bound:.4}");
             assert!(bound >= lambda && bound < 3.0 * lambda, "block {block}: {bound} vs {lambda}");
             assert_eq!(safe.lambda_max(), bound);

@@ -26,10 +26,8 @@ use crate::{Error, Result, SolverFailure};
 /// W = A P row by row, then column J of A_c = Σ_r P[r, J] W[r, ·]. Products
 /// outside `coarse` (cancellations to round-off, for nested spaces) are dropped.
 ///
-/// `op` must hold the matrix with lower-triangle `values` ([`SymmetricOperator::update`]).
 pub fn galerkin_product(
-    op: &SymmetricOperator,
-    values: &[f64],
+    a: WithValues,
     p: &SparseRows,
     pt: &SparseRows,
     coarse: &SymmetricCsc,
@@ -40,14 +38,14 @@ pub fn galerkin_product(
     let w: Vec<Vec<(u32, f64)>> = (0..p.n_rows)
         .into_par_iter()
         .map_init(scratch, |(acc, seen, list), r| {
-            for (s, a) in op.row(values, r) {
+            for (s, v) in a.row(r) {
                 for k in p.row_ptr[s]..p.row_ptr[s + 1] {
                     let j = p.col[k];
                     if !seen[j as usize] {
                         seen[j as usize] = true;
                         list.push(j);
                     }
-                    acc[j as usize] += a * p.val[k];
+                    acc[j as usize] += v * p.val[k];
                 }
             }
             let row = list.iter().map(|&j| (j, acc[j as usize])).collect();
@@ -132,14 +130,8 @@ pub struct Chebyshev {
 impl Chebyshev {
     /// Invert the diagonal blocks and estimate λ_max(D⁻¹A) by Lanczos
     /// (times 1.1: the estimate approaches λ_max from below).
-    pub fn try_new(
-        op: &SymmetricOperator,
-        pattern: &SymmetricCsc,
-        values: &[f64],
-        block: usize,
-        params: ChebyshevParams,
-    ) -> Result<Chebyshev> {
-        Self::try_new_from(&WithValues(op, values), pattern, values, block, params, None)
+    pub fn try_new(a: WithValues, block: usize, params: ChebyshevParams) -> Result<Chebyshev> {
+        Self::try_new_from(&a, a.pattern(), a.values(), block, params, None)
     }
 
     /// [`Self::try_new`] with the Lanczos process started from the dominant
@@ -181,29 +173,18 @@ impl Chebyshev {
     /// The smoother with a guaranteed interval: hi = ‖D⁻¹A‖_∞ (Gershgorin,
     /// [`BlockJacobi::row_sum_bound`], ≥ λ_max(D⁻¹A)) and lo = min(1.1·λ, hi)
     /// / ratio for a cold Lanczos estimate λ; the products in double precision
-    /// with the matrix itself (`op` holds it with `values`). hi ≥ λ_max makes
+    /// with the matrix `a` itself. hi ≥ λ_max makes
     /// |r| < 1 on the whole spectrum, so the V-cycle is SPD. The bound is
     /// loose (4–6× λ_max at p = 2–4 on the sliver cube of tests/solvers.rs),
     /// so the smoothing is weaker (1.5–2× the PCG iterations): this is the
     /// fallback, not the default.
-    pub fn try_new_safe(
-        op: &SymmetricOperator,
-        pattern: &SymmetricCsc,
-        values: &[f64],
-        block: usize,
-        params: ChebyshevParams,
-    ) -> Result<Chebyshev> {
-        Self::try_safe_with_jacobi(op, values, BlockJacobi::try_new(pattern, values, block)?, params)
+    pub fn try_new_safe(a: WithValues, block: usize, params: ChebyshevParams) -> Result<Chebyshev> {
+        Self::try_safe_with_jacobi(a, BlockJacobi::try_new(a.pattern(), a.values(), block)?, params)
     }
 
     /// [`Self::try_new_safe`] with the diagonal blocks already inverted.
-    pub fn try_safe_with_jacobi(
-        op: &SymmetricOperator,
-        values: &[f64],
-        jacobi: BlockJacobi,
-        params: ChebyshevParams,
-    ) -> Result<Chebyshev> {
-        let bound = jacobi.row_sum_bound(op, values);
+    pub fn try_safe_with_jacobi(a: WithValues, jacobi: BlockJacobi, params: ChebyshevParams) -> Result<Chebyshev> {
+        let bound = jacobi.row_sum_bound(a);
         if !(bound > 0.0 && bound.is_finite()) {
             return Err(Error::solver(
                 SolverFailure::Setup,
@@ -211,7 +192,7 @@ impl Chebyshev {
             ));
         }
         let steps = params.power_iterations.max(SAFE_POWER_ITERATIONS);
-        let (lambda, v) = lambda_max_estimate(&WithValues(op, values), &jacobi, steps, None)?;
+        let (lambda, v) = lambda_max_estimate(&a, &jacobi, steps, None)?;
         let lo = (1.1 * lambda).min(bound) / params.ratio;
         Ok(Chebyshev { jacobi, lambda_max: bound, estimate: lambda, lo, params, power: v })
     }
@@ -403,7 +384,7 @@ impl Hierarchy {
             out.push(Level {
                 pt: p.transpose(),
                 p,
-                op: SymmetricOperator::try_new(&pattern)?,
+                op: SymmetricOperator::try_new(&pattern, block)?,
                 values: vec![0.0; pattern.nnz()],
                 pattern,
                 smoother: None,
@@ -426,22 +407,21 @@ impl Hierarchy {
     /// Numeric set-up for the fine matrix held by `op`: Galerkin operators
     /// level by level, smoothers, and the factor of the coarsest; with
     /// `safe`, the smoothers of [`Chebyshev::try_new_safe`].
-    pub fn try_update_with(&mut self, op: &SymmetricOperator, values: &[f64], safe: bool) -> Result<()> {
+    pub fn try_update_with(&mut self, a: WithValues, safe: bool) -> Result<()> {
         self.ready = false;
         for k in 0..self.levels.len() {
             let (above, rest) = self.levels.split_at_mut(k);
             let l = &mut rest[0];
             l.values = match above.last() {
-                None => galerkin_product(op, values, &l.p, &l.pt, &l.pattern),
-                Some(a) => galerkin_product(&a.op, &a.values, &l.p, &l.pt, &l.pattern),
+                None => galerkin_product(a, &l.p, &l.pt, &l.pattern),
+                Some(up) => galerkin_product(up.op.with(&up.pattern, &up.values), &l.p, &l.pt, &l.pattern),
             };
-            l.op.update(&l.values);
             if let Some((chol, factor)) = &mut l.chol {
                 *factor = chol.try_factor(&l.pattern, &l.values)?;
             } else if safe {
-                l.smoother = Some(Chebyshev::try_new_safe(&l.op, &l.pattern, &l.values, self.block, self.params)?);
+                l.smoother = Some(Chebyshev::try_new_safe(l.op.with(&l.pattern, &l.values), self.block, self.params)?);
             } else {
-                l.smoother = Some(Chebyshev::try_new(&l.op, &l.pattern, &l.values, self.block, self.params)?);
+                l.smoother = Some(Chebyshev::try_new(l.op.with(&l.pattern, &l.values), self.block, self.params)?);
             }
         }
         self.ready = true;
@@ -458,8 +438,9 @@ impl Hierarchy {
         }
         let smoother =
             l.smoother.as_ref().ok_or_else(|| Error::solver(SolverFailure::Setup, "p-multigrid level not set up"))?;
-        smoother.smooth_into(&WithValues(&l.op, &l.values), &l.rhs, &mut l.x, &mut l.work);
-        l.op.matvec_into(&l.values, &l.x, &mut l.s);
+        let a = l.op.with(&l.pattern, &l.values);
+        smoother.smooth_into(&a, &l.rhs, &mut l.x, &mut l.work);
+        a.matvec_into(&l.x, &mut l.s);
         axpby_in_place(1.0, &l.rhs, -1.0, &mut l.s);
         let next = &mut below[0];
         next.pt.matvec_into(&l.s, &mut next.rhs);
@@ -468,10 +449,11 @@ impl Hierarchy {
         let (l, next) = (&mut now[k], &below[0]);
         next.p.matvec_into(&next.x, &mut l.e);
         axpby_in_place(1.0, &l.e, 1.0, &mut l.x);
-        l.op.matvec_into(&l.values, &l.x, &mut l.s);
+        let a = l.op.with(&l.pattern, &l.values);
+        a.matvec_into(&l.x, &mut l.s);
         axpby_in_place(1.0, &l.rhs, -1.0, &mut l.s);
         let smoother = l.smoother.as_ref().expect("checked above");
-        smoother.smooth_into(&WithValues(&l.op, &l.values), &l.s, &mut l.e, &mut l.work);
+        smoother.smooth_into(&a, &l.s, &mut l.e, &mut l.work);
         axpby_in_place(1.0, &l.e, 1.0, &mut l.x);
         Ok(())
     }
@@ -577,20 +559,19 @@ mod tests {
         for (m, block) in [(24, 1), (12, 3)] {
             let (a, v) = grid_laplacian(m, block);
             let truth = dense_lambda_max(&a, &v, block);
-            let mut op = SymmetricOperator::try_new(&a).unwrap();
-            op.update(&v);
+            let op = SymmetricOperator::try_new(&a, block).unwrap();
+            let mat = op.with(&a, &v);
             let jacobi = BlockJacobi::try_new(&a, &v, block).unwrap();
-            let cold = Chebyshev::try_new(&op, &a, &v, block, ChebyshevParams::default()).unwrap();
+            let cold = Chebyshev::try_new(mat, block, ChebyshevParams::default()).unwrap();
             let est = cold.estimate();
-            let power = power_iteration(&WithValues(&op, &v), &jacobi, ChebyshevParams::default().power_iterations);
+            let power = power_iteration(&mat, &jacobi, ChebyshevParams::default().power_iterations);
             println!("m {m} block {block}: λ_max {truth:.4}, Lanczos {est:.4}, power {power:.4}");
             assert!(est <= truth * (1.0 + 1e-12) && truth - est < 0.5 * (truth - power), "{est} {power} {truth}");
             // With the safety factor, the smoothed interval covers the spectrum.
             assert!(1.1 * est > truth);
             // Warm-started from its own Ritz vector, two steps find it again.
             let params = ChebyshevParams::default();
-            let warm =
-                Chebyshev::try_with_jacobi(&WithValues(&op, &v), jacobi, params, Some(cold.power_vector())).unwrap();
+            let warm = Chebyshev::try_with_jacobi(&mat, jacobi, params, Some(cold.power_vector())).unwrap();
             assert!(warm.estimate() <= truth * (1.0 + 1e-12) && warm.estimate() >= est, "warm {}", warm.estimate());
         }
     }
