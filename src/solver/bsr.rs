@@ -55,24 +55,12 @@ impl BlockRows {
     fn from_lists(lists: &[Vec<u32>], bb: usize) -> BlockRows {
         let mut ptr = Vec::with_capacity(lists.len() + 1);
         ptr.push(0);
-        let mut col = Vec::new();
+        let mut col = Vec::with_capacity(lists.iter().map(Vec::len).sum());
         for l in lists {
             col.extend_from_slice(l);
             ptr.push(col.len());
         }
         BlockRows { val: vec![0.0; col.len() * bb], ptr, col }
-    }
-
-    /// The values of each block row, as disjoint mutable slices.
-    fn rows_mut<'a>(ptr: &[usize], val: &'a mut [f32], bb: usize) -> Vec<&'a mut [f32]> {
-        let mut rows = Vec::with_capacity(ptr.len().saturating_sub(1));
-        let mut rest = val;
-        for w in ptr.windows(2) {
-            let (head, tail) = rest.split_at_mut((w[1] - w[0]) * bb);
-            rows.push(head);
-            rest = tail;
-        }
-        rows
     }
 
     #[inline]
@@ -171,7 +159,7 @@ impl BlockSym32 {
     /// given to [`Self::try_new`].
     pub fn update(&mut self, pattern: &SymmetricCsc, values: &[f64]) {
         let (b, bb) = (self.b, self.b * self.b);
-        BlockRows::rows_mut(&self.up.ptr, &mut self.up.val, bb).into_par_iter().enumerate().for_each(|(j, row)| {
+        super::split_by(&mut self.up.val, &self.up.ptr, bb).into_par_iter().enumerate().for_each(|(j, row)| {
             for jj in 0..b {
                 let c = j * b + jj;
                 let (s, e) = (pattern.col_ptr[c], pattern.col_ptr[c + 1]);
@@ -189,7 +177,7 @@ impl BlockSym32 {
             }
         });
         let (up, src, ptr) = (&self.up.val, &self.lo_src, &self.lo.ptr);
-        BlockRows::rows_mut(ptr, &mut self.lo.val, bb).into_par_iter().enumerate().for_each(|(i, row)| {
+        super::split_by(&mut self.lo.val, ptr, bb).into_par_iter().enumerate().for_each(|(i, row)| {
             for (t, blk) in row.chunks_exact_mut(bb).enumerate() {
                 let from = &up[src[ptr[i] + t] as usize * bb..][..bb];
                 for r in 0..b {
