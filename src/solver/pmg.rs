@@ -27,7 +27,7 @@ const W_CHUNK: usize = 256;
 
 /// Passes over the fine rows in [`galerkin_product`]: W is held for one
 /// pass's rows at a time.
-const W_PASSES: usize = 4;
+const W_PASSES: usize = 8;
 
 /// W = A P on a range of fine rows, per chunk of [`W_CHUNK`] rows: row
 /// starts (relative to the chunk), columns, values.
@@ -37,10 +37,10 @@ type WChunks = Vec<(Vec<u32>, Vec<u32>, Vec<f64>)>;
 /// W = A P row by row, then column J of A_c = Σ_r P[r, J] W[r, ·]. Products
 /// outside `coarse` (cancellations to round-off, for nested spaces) are dropped.
 ///
-/// W is the largest transient of the preconditioner's set-up (about 40
-/// entries per fine row from p = 4 to 2 in 3D), so it is built for a
-/// quarter of the fine rows at a time ([`W_PASSES`]), in compressed rows of
-/// 12 bytes per entry. Each pass adds its part of every coarse column; the
+/// W is the largest transient of the preconditioner's set-up (a row of W
+/// has about as many entries as a row of A), so it is built for an eighth
+/// of the fine rows at a time ([`W_PASSES`]), in compressed rows of 12
+/// bytes per entry. Each pass adds its part of every coarse column; the
 /// sums do not depend on the number of threads.
 pub fn galerkin_product(a: WithValues, p: &SparseRows, pt: &SparseRows, coarse: &SymmetricCsc) -> Vec<f64> {
     let nc = p.n_cols;
