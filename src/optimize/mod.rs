@@ -1075,7 +1075,7 @@ fn sample_rule(basis: &LagrangeBasis, lattice: usize) -> SampleRule {
     let mut points = rule.points.clone();
     points.extend(lattice.coords.iter().copied());
     let tab = basis.tabulate(&points);
-    SampleRule { dim: tab.dim, n_basis: tab.n_basis, weights, ref_grads: tab.grads }
+    SampleRule::new(tab.dim, tab.n_basis, weights, &tab.grads)
 }
 
 /// The node coordinates of one cell.
