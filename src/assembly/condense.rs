@@ -79,26 +79,7 @@ pub fn condense_element(
     keep: &mut [f64],
     ws: &mut CondenseWorkspace,
 ) -> Result<(), SingularInterior> {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the processor supports AVX2 (checked just above).
-        return unsafe { condense_avx2(split, ke, re, keep, ws) };
-    }
-    condense(split, ke, re, keep, ws)
-}
-
-/// [`condense`] compiled for AVX2 (the same operations in the same order:
-/// the same results).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn condense_avx2(
-    split: &LocalSplit,
-    ke: &mut [f64],
-    re: Option<&mut [f64]>,
-    keep: &mut [f64],
-    ws: &mut CondenseWorkspace,
-) -> Result<(), SingularInterior> {
-    condense(split, ke, re, keep, ws)
+    crate::linalg::with_avx2(#[inline(always)] || condense(split, ke, re, keep, ws))
 }
 
 /// [`condense_element`], inlined into each copy.

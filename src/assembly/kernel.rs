@@ -63,20 +63,10 @@ impl LinearElasticKernel {
     /// element with node coordinates `xe` (`dim` components per node).
     /// Returns `Err(det J)` if the Jacobian is not positive at a quadrature point.
     pub fn stiffness_into(&self, xe: &[f64], ke: &mut [f64], ws: &mut KernelWorkspace) -> Result<(), f64> {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the processor supports AVX2 (checked just above).
-            return unsafe { self.stiffness_avx2(xe, ke, ws) };
-        }
-        self.stiffness(xe, ke, ws)
-    }
-
-    /// [`Self::stiffness`] compiled for AVX2 (the same operations in the
-    /// same order: the same results).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn stiffness_avx2(&self, xe: &[f64], ke: &mut [f64], ws: &mut KernelWorkspace) -> Result<(), f64> {
-        self.stiffness(xe, ke, ws)
+        crate::linalg::with_avx2(
+            #[inline(always)]
+            || self.stiffness(xe, ke, ws),
+        )
     }
 
     /// [`Self::stiffness_into`], inlined into each copy.

@@ -202,31 +202,14 @@ impl SampleRule {
     /// it is infinite.
     pub fn energy_grad(&self, e: &ElementSamples, xe: &[f64], delta: f64, grad: &mut [f64]) -> Option<f64> {
         // The optimisation's inner loop: one copy per dimension, so that the
-        // loops over it are unrolled, and one compiled for AVX2 where the
-        // processor has it (4 lanes instead of SSE2's 2; the same operations
-        // in the same order, so the same results: no fused multiply-add).
+        // loops over it are unrolled, each compiled for AVX2 where the
+        // processor has it.
         PER_POINT.with_borrow_mut(|fq| {
-            #[cfg(target_arch = "x86_64")]
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the processor supports AVX2 (checked just above).
-                return unsafe { self.energy_grad_avx2(e, xe, delta, grad, fq) };
-            }
-            self.energy_grad_dim(e, xe, delta, grad, fq)
+            crate::linalg::with_avx2(
+                #[inline(always)]
+                || self.energy_grad_dim(e, xe, delta, grad, fq),
+            )
         })
-    }
-
-    /// [`Self::energy_grad_dim`] compiled for AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn energy_grad_avx2(
-        &self,
-        e: &ElementSamples,
-        xe: &[f64],
-        delta: f64,
-        grad: &mut [f64],
-        fq: &mut Vec<f64>,
-    ) -> Option<f64> {
-        self.energy_grad_dim(e, xe, delta, grad, fq)
     }
 
     #[inline(always)]

@@ -200,15 +200,11 @@ impl BlockSym32 {
     }
 
     fn apply_block<const B: usize>(&self, x: &[f64], y: &mut [f64]) {
-        #[cfg(target_arch = "x86_64")]
-        let avx2 = std::arch::is_x86_feature_detected!("avx2");
         y.par_chunks_mut(CHUNK_ROWS * B).enumerate().for_each(|(t, yc)| {
-            #[cfg(target_arch = "x86_64")]
-            if avx2 {
-                // SAFETY: the processor supports AVX2 (checked above).
-                return unsafe { self.rows_avx2::<B>(t * CHUNK_ROWS, x, yc) };
-            }
-            self.rows::<B>(t * CHUNK_ROWS, x, yc)
+            crate::linalg::with_avx2(
+                #[inline(always)]
+                || self.rows::<B>(t * CHUNK_ROWS, x, yc),
+            )
         });
     }
 
@@ -221,14 +217,6 @@ impl BlockSym32 {
             self.up.add_row::<B>(first + di, x, &mut acc);
             yb.copy_from_slice(&acc);
         }
-    }
-
-    /// [`Self::rows`] compiled for AVX2 (the same operations in the same
-    /// order: the same results).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn rows_avx2<const B: usize>(&self, first: usize, x: &[f64], y: &mut [f64]) {
-        self.rows::<B>(first, x, y)
     }
 }
 

@@ -442,7 +442,7 @@ impl Hierarchy {
         self.ready
     }
 
-    /// Numeric set-up for the fine matrix held by `op`: Galerkin operators
+    /// Numeric set-up for the fine matrix `a`: Galerkin operators
     /// level by level, smoothers, and the factor of the coarsest; with
     /// `safe`, the smoothers of [`Chebyshev::try_new_safe`].
     pub fn try_update_with(&mut self, a: WithValues, safe: bool) -> Result<()> {
