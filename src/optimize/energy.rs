@@ -207,24 +207,12 @@ impl SampleRule {
         PER_POINT.with_borrow_mut(|fq| {
             crate::linalg::with_avx2(
                 #[inline(always)]
-                || self.energy_grad_dim(e, xe, delta, grad, fq),
+                || match self.dim {
+                    2 => self.energy_grad_in::<2>(e, xe, delta, grad, fq),
+                    _ => self.energy_grad_in::<3>(e, xe, delta, grad, fq),
+                },
             )
         })
-    }
-
-    #[inline(always)]
-    fn energy_grad_dim(
-        &self,
-        e: &ElementSamples,
-        xe: &[f64],
-        delta: f64,
-        grad: &mut [f64],
-        fq: &mut Vec<f64>,
-    ) -> Option<f64> {
-        match self.dim {
-            2 => self.energy_grad_in::<2>(e, xe, delta, grad, fq),
-            _ => self.energy_grad_in::<3>(e, xe, delta, grad, fq),
-        }
     }
 
     /// [`Self::energy_grad`] in dimension `D`, with `fq` for the values at
@@ -306,7 +294,11 @@ mod tests {
             let e = rule.element(&xs).unwrap();
             let (mut dispatched, mut portable) = (vec![0.0; xe.len()], vec![0.0; xe.len()]);
             let v = rule.energy_grad(&e, &xe, 0.1, &mut dispatched).unwrap();
-            let w = rule.energy_grad_dim(&e, &xe, 0.1, &mut portable, &mut Vec::new()).unwrap();
+            let w = match dim {
+                2 => rule.energy_grad_in::<2>(&e, &xe, 0.1, &mut portable, &mut Vec::new()),
+                _ => rule.energy_grad_in::<3>(&e, &xe, 0.1, &mut portable, &mut Vec::new()),
+            }
+            .unwrap();
             assert_eq!(v.to_bits(), w.to_bits(), "{simplex:?}: {v} vs {w}");
             assert!(dispatched.iter().zip(&portable).all(|(a, b)| a.to_bits() == b.to_bits()), "{simplex:?}");
             assert!(dispatched.iter().any(|&g| g != 0.0));
