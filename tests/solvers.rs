@@ -73,6 +73,25 @@ fn iterative_and_direct_solvers_curve_the_sphere_cavity_alike_at_p_2_and_3() {
     }
 }
 
+/// The default choice solves a 3D system directly up to a size that grows
+/// with the order: a mesh of 1944 cells goes to the iterative solver at
+/// p = 2 and 3, one of 288 cells to the direct solver at p = 4 and 5,
+/// although it has more unknowns there (denser rows, for which the direct
+/// solver is the faster up to a larger size).
+#[test]
+fn the_default_solver_turns_iterative_at_a_size_that_grows_with_the_order() {
+    let small = cases::sphere_in_box_3d(3, 3);
+    let coarse = cases::sphere_in_box_3d(2, 1);
+    for (case, p, expected) in
+        [(&small, 2, "pcg-pmg"), (&small, 3, "pcg-pmg"), (&coarse, 4, "direct"), (&coarse, 5, "direct")]
+    {
+        let r = run(case, p, Formulation::Ile, SolverChoice::Auto).unwrap();
+        assert_eq!(r.report.solves.solver, expected, "p = {p}, {} unknowns", r.report.dofs);
+    }
+    let limits: Vec<usize> = (1..=10).map(hocurve::solver::auto_direct_max_dofs).collect();
+    assert!(limits.windows(2).all(|w| w[0] <= w[1]), "{limits:?}");
+}
+
 #[test]
 fn iterative_and_direct_solvers_curve_the_2d_cylinder_alike() {
     let case = cases::cylinder_channel_2d(24, 6, 25.0);

@@ -10,7 +10,7 @@ use crate::quality;
 use crate::reference::{LagrangeBasis, NodeSet};
 use crate::solver::{
     DirectOrdering, DirectSolver, ExternalAdapter, IterativeParams, IterativeSolver, LinearSolver, SolveLog,
-    SolverChoice, AUTO_DIRECT_MAX_DOFS,
+    SolverChoice,
 };
 use crate::{Error, Result, SolverFailure};
 
@@ -167,8 +167,8 @@ pub struct ElasticStop {
 }
 
 /// The solver `choice` asks for, set up for this mesh and pattern. `Auto`:
-/// direct in 2D and up to [`AUTO_DIRECT_MAX_DOFS`] unknowns in 3D, iterative
-/// above. The direct solver orders with `ordering`.
+/// direct in 2D and for small 3D systems ([`crate::solver::auto_direct_max_dofs`]),
+/// iterative above. The direct solver orders with `ordering`.
 fn make_solver(
     choice: SolverChoice,
     ordering: DirectOrdering,
@@ -180,7 +180,7 @@ fn make_solver(
         SolverChoice::External(host) => return Ok(Box::new(ExternalAdapter::new(host, pattern))),
         SolverChoice::Direct => false,
         SolverChoice::Iterative => true,
-        SolverChoice::Auto => mesh.dim() == 3 && pattern.n > AUTO_DIRECT_MAX_DOFS,
+        SolverChoice::Auto => mesh.dim() == 3 && pattern.n > crate::solver::auto_direct_max_dofs(mesh.order),
     };
     if !iterative {
         return Ok(Box::new(DirectSolver::try_new_with(pattern, ordering)?));

@@ -71,9 +71,9 @@
 //! [`DirectOrdering::Auto`] (the default) follows this: ND in 3D when
 //! n² / nnz(A) ≥ 300, in 2D from 50,000 unknowns with a mean column length
 //! ≥ 20 (p ≥ 4), AMD otherwise.
-//! In the default solver choice (direct in 3D up to 25,000 unknowns) that
-//! means ND for 3D p = 2–3 meshes of 15–25k unknowns, large 2D p ≥ 4 meshes
-//! and the p-multigrid's order-1 coarsest level from ~7k unknowns (rows
+//! In the default solver choice (direct in 3D up to 5,000 unknowns at p = 2
+//! and 3, 15,000 at p = 4, 25,000 from p = 5) that means AMD for the 3D
+//! systems solved directly, ND for large 2D p ≥ 4 meshes and the p-multigrid's order-1 coarsest level from ~7k unknowns (rows
 //! p=1 above: 2.1× faster at 34k; its effect inside a PCG run was not
 //! measured); with `--solver direct` on large 3D meshes, ND unless the mesh
 //! is coarse for its order (p = 5 at 34k stays with AMD).

@@ -171,8 +171,8 @@ pub trait LinearSolver {
 /// Which linear solver runs the increments.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub enum SolverChoice {
-    /// The direct solver in 2D and in 3D up to [`AUTO_DIRECT_MAX_DOFS`]
-    /// unknowns, the iterative one for larger 3D systems.
+    /// The direct solver in 2D and for small 3D systems
+    /// ([`auto_direct_max_dofs`]), the iterative one for larger 3D systems.
     #[default]
     Auto,
     /// Sparse Cholesky (LU when not positive definite).
@@ -183,15 +183,27 @@ pub enum SolverChoice {
     Iterative,
 }
 
-/// Largest 3D system that [`SolverChoice::Auto`] solves directly. Measured
-/// (sphere cavity, one ILE increment, 2026-11-23, other jobs paused): at p = 2
-/// the iterative solve is 2× faster at 17k unknowns and 4.7× at 34k; at p = 4
-/// the direct one is 2.6× faster at 17k and 2× slower at 60k. Above, the
-/// direct solver's time and memory grow much faster. 2D stays direct at every
-/// size: its factorisations are cheap (nested-dissection fill ~ N log N) and
-/// the p-multigrid is weak on stretched boundary-layer cells (63 iterations on
-/// the cylinder case at p = 4); a large-2D comparison was not measured.
-pub const AUTO_DIRECT_MAX_DOFS: usize = 25_000;
+/// Largest 3D system (unknowns after static condensation) that
+/// [`SolverChoice::Auto`] solves directly at order `order`. The direct
+/// solver's fill grows with the order's denser rows, the p-multigrid's cost
+/// does not, so the crossover moves up with p. Measured (sphere cavity, one
+/// ILE increment, `hocurve bench-one`, setup plus solve, 2026-11-26): at
+/// p = 2 direct and iterative take 9 and 12 ms at 2k unknowns, 56 and 37 ms
+/// at 7k, 202 and 90 ms at 17k; at p = 3 65 and 62 ms at 7k, 393 and 256 ms
+/// at 25k; at p = 4 they are even at 16k (220 ms each), at p = 5 at 27k
+/// (730 ms each); at p = 6 direct is 1.6× faster at 5k and 1.3× slower at
+/// 42k. Above, the direct solver's time and memory grow much faster. 2D
+/// stays direct at every size: its factorisations are cheap
+/// (nested-dissection fill ~ N log N) and the p-multigrid is weak on
+/// stretched boundary-layer cells (63 iterations on the cylinder case at
+/// p = 4); a large-2D comparison was not measured.
+pub fn auto_direct_max_dofs(order: usize) -> usize {
+    match order {
+        0..=3 => 5_000,
+        4 => 15_000,
+        _ => 25_000,
+    }
+}
 
 impl SolverChoice {
     pub fn name(&self) -> &'static str {
