@@ -159,7 +159,7 @@ struct Pass<'r> {
 
 /// The boundary before the polish: its distance from the geometry between
 /// the nodes.
-type Baseline = fidelity::Distances;
+type Baseline = fidelity::Baseline;
 
 /// Cell figures used to select and to accept.
 #[derive(Debug, Clone, Copy)]
@@ -368,10 +368,7 @@ impl<'s, 'p> Stage<'s, 'p> {
         // Boundary nodes slide at any quality here, as far as the boundary
         // between them stays close to the geometry (see [`fidelity`]).
         let ctx = self.ctx;
-        let baseline = self.projector.and_then(|projector| {
-            let mesh = &state.mesh;
-            ctx.pieces.distances(projector, &mesh.cells, &mesh.constraint, &mesh.coords)
-        });
+        let baseline = self.projector.map(|_| Baseline::new(&state.mesh.coords));
         for _ in 0..POLISH_ROUNDS {
             if invalid_count(state.certified) > 0 {
                 break;
@@ -722,7 +719,7 @@ impl<'w> PatchWork<'w> {
             gather_moved(cell, &self.local[k * npc..(k + 1) * npc], view.coords, pos, dim, &mut xe);
             after.push(xe);
         }
-        self.ctx.pieces.faithful(projector, &cells, view.constraint, &moved, &after, baseline, self.h)
+        self.ctx.pieces.faithful(projector, &cells, view.cells, view.constraint, &moved, &after, baseline, self.h)
     }
 
     /// The unknowns of a sliding pass from `pos`: free nodes, and sliding ones in their entity's tangent space.
