@@ -418,3 +418,47 @@ fn the_c_abi_makes_the_run_again_with_the_caps_kept_unless_told_not_to() {
         hoc_mesh_destroy(&mut h);
     }
 }
+
+/// A projector that counts the points it is asked for.
+struct Counting<'a>(&'a ShapeProjector, std::sync::atomic::AtomicUsize);
+
+impl hocurve::geometry::Projector for Counting<'_> {
+    fn project(&self, dim: usize, tag: i32, points: &[[f64; 3]], out: &mut [[f64; 3]]) -> Result<(), String> {
+        self.1.fetch_add(points.len(), std::sync::atomic::Ordering::Relaxed);
+        self.0.project(dim, tag, points, out)
+    }
+}
+
+#[test]
+fn each_bulge_sample_goes_to_the_projector_once_however_often_it_is_measured() {
+    let (mut mesh, projector) = load("sphere_cavity_coarse_gmsh.msh", 0.8);
+    mesh.retain_tags(|d, t| projector.get(d, t).is_some());
+    let samples = hocurve::mesh::repair::bulge_samples(&mesh);
+    let counting = Counting(&projector, Default::default());
+    let asked = || counting.1.load(std::sync::atomic::Ordering::Relaxed);
+    let mut projections = hocurve::geometry::SampleProjections::default();
+    let first = projections.project(mesh.dim, &samples, &counting).unwrap();
+    // Each edge midpoint is a sample of both its facets, and is asked for once.
+    let distinct: std::collections::HashSet<_> =
+        samples.points.iter().zip(&samples.entities).map(|(x, e)| (*e, x.map(f64::to_bits))).collect();
+    assert!(distinct.len() < samples.points.len() * 3 / 4, "{} of {}", distinct.len(), samples.points.len());
+    assert_eq!(asked(), distinct.len());
+    // The answers are those of each point projected alone.
+    for ((x, &(dim, tag)), y) in samples.points.iter().zip(&samples.entities).zip(&first) {
+        let mut alone = [[0.0; 3]];
+        hocurve::geometry::Projector::project(&projector, dim, tag, &[*x], &mut alone).unwrap();
+        assert_eq!(alone[0], *y);
+    }
+    // Measured again: nothing new to project, the same answers.
+    assert_eq!(projections.project(mesh.dim, &samples, &counting).unwrap(), first);
+    assert_eq!(asked(), distinct.len());
+    // The repair of this mesh flips a surface edge and measures again.
+    let n = asked();
+    let mut again = hocurve::geometry::SampleProjections::default();
+    let r = repair_with(&mesh, true, |m, s| again.project(m.dim, s, &counting)).unwrap();
+    assert!(r.summary.surface_flips > 0, "{:?}", r.summary);
+    let cold = Counting(&projector, Default::default());
+    let r2 = repair_with(&mesh, true, |m, s| project_samples(m.dim, s, &cold)).unwrap();
+    assert_eq!((r.mesh, r.input_cell), (r2.mesh, r2.input_cell));
+    assert!(asked() - n < cold.1.load(std::sync::atomic::Ordering::Relaxed), "fewer points asked for across rounds");
+}

@@ -449,9 +449,10 @@ impl Run<'_> {
         let n_input_cells = prepared.n_input_cells();
         let (reoriented, removed_caps) = (prepared.reoriented_cells(), n_input_cells - prepared.input_cell().len());
         let repaired = match opts.repair {
-            true => Some(repair_with(prepared.linear(), opts.remove_caps, |m, s| {
-                crate::geometry::project_samples(m.dim, s, projector)
-            })?),
+            true => {
+                let mut projections = crate::geometry::SampleProjections::default();
+                Some(repair_with(prepared.linear(), opts.remove_caps, |m, s| projections.project(m.dim, s, projector))?)
+            }
             false => None,
         };
         let repair = repaired.as_ref().map_or_else(RepairSummary::default, |r| r.summary);

@@ -46,28 +46,56 @@ pub fn project_samples(
     samples: &crate::mesh::repair::BulgeSamples,
     projector: &dyn Projector,
 ) -> crate::Result<Vec<[f64; 3]>> {
-    let mut groups: std::collections::BTreeMap<(usize, i32), Vec<usize>> = Default::default();
-    for (i, &e) in samples.entities.iter().enumerate() {
-        groups.entry(e).or_default().push(i);
-    }
-    let mut projected = vec![[f64::NAN; 3]; samples.points.len()];
-    for ((edim, tag), ids) in groups {
-        let pts: Vec<[f64; 3]> = ids.iter().map(|&i| samples.points[i]).collect();
-        let mut out = vec![[f64::NAN; 3]; pts.len()];
-        projector.project(edim, tag, &pts, &mut out).map_err(|m| {
-            crate::Error::Projection(format!("projector failed on entity (dim {edim}, tag {tag}): {m}"))
-        })?;
-        for (&i, mut y) in ids.iter().zip(out) {
-            if dim == 2 {
-                y[2] = 0.0;
+    SampleProjections::default().project(dim, samples, projector)
+}
+
+/// Projections of bulge samples, remembered by entity and exact point: an
+/// edge's midpoint is a sample of both its facets, and the repair measures
+/// its mesh again after each change, mostly at the same points. Each point
+/// goes to the projector once per entity, which assumes (as every stage of
+/// hocurve does) that the projector's answer depends on the point and
+/// entity alone. On STEP parts through OpenCASCADE this halves the
+/// projections of the repair.
+#[derive(Debug, Default)]
+pub struct SampleProjections {
+    known: std::collections::HashMap<(usize, i32, [u64; 3]), [f64; 3]>,
+}
+
+impl SampleProjections {
+    /// [`project_samples`], asking `projector` only for the points not projected before.
+    pub fn project(
+        &mut self,
+        dim: usize,
+        samples: &crate::mesh::repair::BulgeSamples,
+        projector: &dyn Projector,
+    ) -> crate::Result<Vec<[f64; 3]>> {
+        let key = |(edim, tag): (usize, i32), x: &[f64; 3]| (edim, tag, x.map(f64::to_bits));
+        // The new points of each entity, once each, in the order they come.
+        let mut groups: std::collections::BTreeMap<(usize, i32), Vec<[f64; 3]>> = Default::default();
+        let mut queued = std::collections::HashSet::new();
+        for (x, &e) in samples.points.iter().zip(&samples.entities) {
+            let k = key(e, x);
+            if !self.known.contains_key(&k) && queued.insert(k) {
+                groups.entry(e).or_default().push(*x);
             }
-            if !y.iter().all(|v| v.is_finite()) {
-                return Err(crate::Error::Projection(format!(
-                    "projector returned a non-finite point on entity (dim {edim}, tag {tag})"
-                )));
-            }
-            projected[i] = y;
         }
+        for ((edim, tag), pts) in groups {
+            let mut out = vec![[f64::NAN; 3]; pts.len()];
+            projector.project(edim, tag, &pts, &mut out).map_err(|m| {
+                crate::Error::Projection(format!("projector failed on entity (dim {edim}, tag {tag}): {m}"))
+            })?;
+            for (x, mut y) in pts.iter().zip(out) {
+                if dim == 2 {
+                    y[2] = 0.0;
+                }
+                if !y.iter().all(|v| v.is_finite()) {
+                    return Err(crate::Error::Projection(format!(
+                        "projector returned a non-finite point on entity (dim {edim}, tag {tag})"
+                    )));
+                }
+                self.known.insert(key((edim, tag), x), y);
+            }
+        }
+        Ok(samples.points.iter().zip(&samples.entities).map(|(x, &e)| self.known[&key(e, x)]).collect())
     }
-    Ok(projected)
 }
