@@ -281,3 +281,23 @@ fn the_polish_slides_boundary_nodes_without_moving_the_boundary_away_from_the_sp
     assert!(d_fixed > 0.0 && d_sliding <= d_fixed * (1.0 + 1e-9), "{d_fixed:e} -> {d_sliding:e}");
     assert!(q_sliding >= q_fixed, "min Q3 {q_fixed} -> {q_sliding}");
 }
+
+/// `tests/data/torus_cavity_n4_gmsh.msh`: gmsh 4.15's mesh of the box
+/// [-1, 1]³ less a torus of radii 0.5 and 0.35 (surface tag 7), four
+/// elements per 2π of curvature (`Mesh.MeshSizeFromCurvature` 4,
+/// `MeshSizeMax` 0.5, `MeshSizeMin` 0.02). At p = 2 the elastic stage stops
+/// short and the optimisation must untangle cells next to each other (an
+/// untangling stopped early, at a relative decrease of 1e-4 instead of
+/// 1e-6, left a point inverted there).
+#[test]
+fn a_coarse_gmsh_torus_cavity_is_untangled_where_the_elastic_stage_stops_short() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/torus_cavity_n4_gmsh.msh");
+    let mut mesh = hocurve::io::gmsh::to_linear_mesh(&hocurve::io::gmsh::read_msh(&path).unwrap()).unwrap();
+    let mut projector = ShapeProjector::new();
+    projector.insert(7, Shape::parse("torus:0,0,0,0.5,0.35").unwrap());
+    mesh.retain_tags(|d, t| projector.get(d, t).is_some());
+    let c = run(&mesh, &projector, &CurveOptions { order: 2, ..Default::default() }).unwrap();
+    assert_eq!(c.report.quality.n_invalid, 0);
+    assert!(c.report.elastic_stop.is_some(), "the elastic stage stopped short");
+    assert!(c.report.optimization.invalid_before > 0);
+}
