@@ -144,7 +144,14 @@ fn no_library_function_is_longer_than_80_lines() {
                 ["fn ", "pub fn ", "pub(crate) fn ", "pub(super) fn ", "unsafe fn ", "pub unsafe extern \"C\" fn "]
                     .iter()
                     .any(|p| trimmed.starts_with(p));
-            if !is_fn || trimmed.ends_with(';') {
+            // A declaration without a body (a trait's), however many lines
+            // its signature takes, ends with ';' before any line opens a body.
+            let declaration = lines[i..]
+                .iter()
+                .map(|l| l.trim_end())
+                .find(|l| l.ends_with(';') || l.ends_with('{'))
+                .map(|l| l.ends_with(';'));
+            if !is_fn || declaration != Some(false) {
                 continue;
             }
             let close = format!("{indent}}}");
