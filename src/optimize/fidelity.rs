@@ -28,6 +28,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::sync::{Mutex, OnceLock};
 
+use super::gather;
 use crate::geometry::Projector;
 use crate::mesh::NodeConstraint;
 use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
@@ -131,12 +132,7 @@ impl Baseline {
         }
         // Measured outside the lock: another thread may measure the same
         // piece meanwhile, to the same value.
-        let dim = pieces.dim;
-        let mut xe = vec![0.0; cell.len() * dim];
-        for (a, &n) in cell.iter().enumerate() {
-            xe[a * dim..(a + 1) * dim].copy_from_slice(&self.coords[n * dim..(n + 1) * dim]);
-        }
-        let d = pieces.distance(projector, piece, entity, &xe);
+        let d = pieces.distance(projector, piece, entity, &gather(&self.coords, cell, pieces.dim));
         self.by_piece.lock().ok()?.insert(k, d);
         d
     }
@@ -207,22 +203,18 @@ impl Pieces {
         // Per entity: its sample points, and each piece's key with the end of its points.
         type Batch = (Vec<[f64; 3]>, Vec<(Vec<usize>, usize)>);
         let mut points: BTreeMap<(usize, i32), Batch> = BTreeMap::new();
-        let mut xe = vec![0.0; npc * dim];
         for cell in cells.chunks_exact(npc) {
+            let xe = gather(coords, cell, dim);
             for piece in &self.pieces {
                 let Some(entity) = entity(piece, cell, constraint) else { continue };
                 let k = key(piece, cell);
                 if !seen.insert(k.clone()) {
                     continue;
                 }
-                for (a, &n) in cell.iter().enumerate() {
-                    xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
-                }
                 let (pts, ends) = points.entry(entity).or_default();
-                let all = self.points(piece, &xe);
                 match probe {
-                    true => pts.push(all[piece.probe]),
-                    false => pts.extend(all),
+                    true => pts.push(self.point(piece, &xe, piece.probe)),
+                    false => pts.extend(self.points(piece, &xe)),
                 }
                 ends.push((k, pts.len()));
             }
@@ -299,20 +291,19 @@ impl Pieces {
 
     /// The sample points of `piece` on the element with node coordinates `xe`.
     fn points(&self, piece: &Piece, xe: &[f64]) -> Vec<[f64; 3]> {
+        (0..piece.values.len() / self.npc).map(|i| self.point(piece, xe, i)).collect()
+    }
+
+    /// The `i`-th sample point of `piece` on the element with node coordinates `xe`.
+    fn point(&self, piece: &Piece, xe: &[f64], i: usize) -> [f64; 3] {
         let (dim, npc) = (self.dim, self.npc);
-        piece
-            .values
-            .chunks_exact(npc)
-            .map(|n| {
-                let mut x = [0.0; 3];
-                for (a, &w) in n.iter().enumerate() {
-                    for d in 0..dim {
-                        x[d] += w * xe[a * dim + d];
-                    }
-                }
-                x
-            })
-            .collect()
+        let mut x = [0.0; 3];
+        for (a, &w) in piece.values[i * npc..(i + 1) * npc].iter().enumerate() {
+            for d in 0..dim {
+                x[d] += w * xe[a * dim + d];
+            }
+        }
+        x
     }
 }
 
