@@ -310,6 +310,17 @@ impl Session {
         self.progress = progress;
     }
 
+    /// The built-in linear solver of the next runs (default
+    /// [`SolverChoice::Auto`]); a host's solver set with
+    /// [`Session::set_linear_solver`] takes precedence while set.
+    pub fn set_solver(&mut self, solver: SolverChoice) -> Result<()> {
+        if matches!(solver, SolverChoice::External(_)) {
+            return Err(Error::InvalidInput("a host's solver is set with set_linear_solver".into()));
+        }
+        self.opts.solver = solver;
+        Ok(())
+    }
+
     /// The host's linear solver for every system of the next runs; None
     /// restores the built-in one (`options().solver`).
     pub fn set_linear_solver(&mut self, solver: Option<ExternalSolver>) {
@@ -369,6 +380,29 @@ impl Session {
         let report = CurveReport { reoriented_cells: self.reoriented, ..curved.report };
         self.report = Some(report);
         Ok(())
+    }
+
+    /// Curve with the settings `opts` (all of them, the order included) in
+    /// `increments` load increments. On success the session keeps `opts`
+    /// and the curved mesh; on error it is exactly as before, settings
+    /// included, which the setters one by one cannot promise (a new order
+    /// makes the current mesh the straight one at that order).
+    pub fn run_with(&mut self, opts: CurveOptions, increments: usize) -> Result<()> {
+        validate_options(&CurveOptions { increments, ..opts.clone() })?;
+        let same_mesh = opts.order == self.opts.order
+            && opts.spacing == self.opts.spacing
+            && opts.remove_caps == self.opts.remove_caps;
+        let fresh = if same_mesh { None } else { Some(prepare(&self.input, &opts, &self.straight_tags)?) };
+        let saved_opts = std::mem::replace(&mut self.opts, opts);
+        let saved_prepared = fresh.map(|p| std::mem::replace(&mut self.prepared, p));
+        let result = self.run(increments);
+        if result.is_err() {
+            self.opts = saved_opts;
+            if let Some(p) = saved_prepared {
+                self.prepared = p;
+            }
+        }
+        result
     }
 
     /// Node coordinates of the current mesh for connectivity in `ordering`:

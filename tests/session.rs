@@ -60,6 +60,26 @@ fn failed_runs_leave_the_mesh_bitwise_unchanged() {
 }
 
 #[test]
+fn a_failed_run_with_new_settings_keeps_the_mesh_and_the_settings() {
+    let mut s = session();
+    s.set_projector(Some(Box::new(Faulty("ok"))));
+    s.run(2).unwrap();
+    let (coords, report, opts) = (s.mesh().coords.clone(), s.report().cloned().unwrap(), s.options().clone());
+    s.set_projector(Some(Box::new(Faulty("error"))));
+    // A new order (another mesh to curve) and a new material, then a failure.
+    let next = hocurve::CurveOptions { order: 4, poisson: 0.3, ..opts.clone() };
+    assert!(matches!(s.run_with(next.clone(), 2), Err(Error::Projection(_))));
+    assert_eq!(s.mesh().coords, coords);
+    assert_eq!(s.mesh().order, 3);
+    assert_eq!(s.report().unwrap().quality.min_q3, report.quality.min_q3);
+    assert_eq!((s.options().order, s.options().poisson), (opts.order, opts.poisson));
+    // With a working projector the same settings are kept with the mesh.
+    s.set_projector(Some(Box::new(Faulty("ok"))));
+    s.run_with(next.clone(), 2).unwrap();
+    assert_eq!((s.mesh().order, s.options().order, s.options().poisson), (4, 4, 0.3));
+}
+
+#[test]
 fn cancelling_from_the_progress_callback_stops_the_run() {
     let mut s = session();
     s.set_projector(Some(Box::new(Faulty("ok"))));

@@ -5,12 +5,14 @@
 //!   high-order cells to assess, and write order-p meshes as MSH 4.1 ASCII.
 //! - [`vtk`]: write order-p meshes as VTK XML unstructured grids with
 //!   Lagrange cells (types 69 and 71) and point/cell data.
+//! - [`report`]: the JSON report of a run (text; the caller writes it).
 //!
 //! Writers are atomic: they write `<path>.tmp` and rename it over `path`, so a
 //! failed run leaves no half-written file behind.
 
 pub mod gmsh;
 pub mod mesh_file;
+pub mod report;
 pub mod vtk;
 
 pub use mesh_file::{check_mesh_extension, write_mesh};
