@@ -5,14 +5,15 @@
 #   2. cargo test --release      (unit, integration and doc tests, header check)
 #   3. pytest -q tests/python    (end-to-end: gmsh, meshio and VTK read what
 #                                 hocurve writes; quality agrees with gmsh)
-#   4. scripts/test_c.sh         (install into a temp prefix; C, C++, Fortran
+#   4. pip install ./python; pytest -q tests/python_pkg (the Python package)
+#   5. scripts/test_c.sh         (install into a temp prefix; C, C++, Fortran
 #                                 tests on TetGen/CGAL meshes via find_package;
 #                                 ctest, then the same under valgrind and under
 #                                 AddressSanitizer + UBSan + LeakSanitizer)
-#   5. scripts/fuzz.sh           (cargo-fuzz: the .msh reader and the C ABI call
+#   6. scripts/fuzz.sh           (cargo-fuzz: the .msh reader and the C ABI call
 #                                 sequence, HOCURVE_FUZZ_SECONDS each, default
 #                                 60; HOCURVE_SKIP_FUZZ=1 skips it)
-# Steps 2-5 all run even if one fails; the exit status is non-zero if
+# Steps 2-6 all run even if one fails; the exit status is non-zero if
 # anything failed. The Python venv is made (or reused) by setup_python.sh.
 set -uo pipefail
 
@@ -53,6 +54,15 @@ if [ "$py_rc" -eq 5 ]; then
     echo "test_all: pytest collected no tests" >&2
 fi
 
+step "Python package: pip install ./python; pytest -q tests/python_pkg"
+if "$venv/bin/python" -m pip install --quiet --no-build-isolation "$repo/python"; then
+    "$venv/bin/python" -m pytest -q -p no:cacheprovider tests/python_pkg
+    pkg_rc=$?
+else
+    echo "test_all: pip install ./python failed" >&2
+    pkg_rc=1
+fi
+
 step "C, C++ and Fortran tests (scripts/test_c.sh)"
 "$repo/scripts/test_c.sh"
 c_rc=$?
@@ -67,6 +77,7 @@ fi
 step "summary"
 echo "cargo test: $([ $cargo_rc -eq 0 ] && echo ok || echo "FAILED (exit $cargo_rc)")"
 echo "pytest:     $([ $py_rc -eq 0 ] && echo ok || echo "FAILED (exit $py_rc)")"
+echo "Python pkg: $([ $pkg_rc -eq 0 ] && echo ok || echo "FAILED (exit $pkg_rc)")"
 echo "C tests:    $([ $c_rc -eq 0 ] && echo ok || echo "FAILED (exit $c_rc)")"
 echo "fuzzing:    $([ "${HOCURVE_SKIP_FUZZ:-0}" = 1 ] && echo skipped || { [ $fuzz_rc -eq 0 ] && echo ok || echo "FAILED (exit $fuzz_rc)"; })"
-[ "$cargo_rc" -eq 0 ] && [ "$py_rc" -eq 0 ] && [ "$c_rc" -eq 0 ] && [ "$fuzz_rc" -eq 0 ]
+[ "$cargo_rc" -eq 0 ] && [ "$py_rc" -eq 0 ] && [ "$pkg_rc" -eq 0 ] && [ "$c_rc" -eq 0 ] && [ "$fuzz_rc" -eq 0 ]
