@@ -40,6 +40,7 @@ __all__ = [
     "InvalidElementError",
     "FileError",
     "CancelledError",
+    "demo_mesh",
     "from_meshio",
     "to_meshio",
 ]
@@ -338,6 +339,22 @@ class Mesh:
         command line does. The file appears whole or not at all."""
         with _errors():
             self._native.write(str(path))
+
+
+def demo_mesh(name: str) -> Mesh:
+    """One of the command line's demonstration cases, ready to run, as
+    ``hocurve demo`` curves it: ``"cylinder-2d"`` (a cylinder in a channel
+    with a boundary layer of stretching 100) or ``"sphere-3d"`` (a spherical
+    cavity in a box)."""
+    with _errors():
+        vertices, cells, facets, ftags, edges, etags, shapes, _ = _native.demo_case(name)
+    mesh = Mesh(vertices, cells)
+    if len(facets):
+        mesh.set_boundary(facets, ftags)
+    if len(edges):
+        mesh.set_feature_edges(edges, etags)
+    mesh.set_shapes(dict(shapes))
+    return mesh
 
 
 _CURVES = ("circle", "circle3", "line", "naca4")

@@ -441,9 +441,54 @@ impl NativeMesh {
     }
 }
 
+/// One of the command line's demonstration cases as arrays: vertices,
+/// cells, facets and their tags, feature edges and their tags, the shapes
+/// (tag, shape in the command line's syntax) and a description.
+type DemoArrays<'py> = (
+    Bound<'py, PyArray2<f64>>,
+    Bound<'py, PyArray2<i64>>,
+    Bound<'py, PyArray2<i64>>,
+    Bound<'py, PyArray1<i32>>,
+    Bound<'py, PyArray2<i64>>,
+    Bound<'py, PyArray1<i32>>,
+    Vec<(i32, String)>,
+    String,
+);
+
+/// `cylinder-2d` and `sphere-3d`, exactly as `hocurve demo` curves them.
+#[pyfunction]
+fn demo_case<'py>(py: Python<'py>, name: &str) -> PyResult<DemoArrays<'py>> {
+    let case = match name {
+        "cylinder-2d" => hocurve::cases::cylinder_channel_2d(48, 8, 100.0),
+        "sphere-3d" => hocurve::cases::sphere_in_box_3d(3, 3),
+        other => {
+            return Err(py_error(py, &invalid(format!("unknown demo case '{other}' (cylinder-2d or sphere-3d)"))));
+        }
+    };
+    let m = &case.mesh;
+    let d = m.dim;
+    let ints = |v: &[usize], k: usize| {
+        let flat: Vec<i64> = v.iter().map(|&i| i as i64).collect();
+        Array2::from_shape_vec((v.len() / k, k), flat).expect("rows of k").into_pyarray(py)
+    };
+    let coords = Array2::from_shape_vec((m.coords.len() / d, d), m.coords.clone()).expect("rows of dim");
+    let shapes = case.projector.iter().map(|(&(_, tag), shape)| (tag, shape.to_string())).collect();
+    Ok((
+        coords.into_pyarray(py),
+        ints(&m.cells, d + 1),
+        ints(&m.facets, d),
+        m.facet_tags.clone().into_pyarray(py),
+        ints(&m.feature_edges, 2),
+        m.feature_edge_tags.clone().into_pyarray(py),
+        shapes,
+        case.description,
+    ))
+}
+
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<NativeMesh>()?;
+    m.add_function(wrap_pyfunction!(demo_case, m)?)?;
     m.add("HocurveError", m.py().get_type::<HocurveError>())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

@@ -76,6 +76,17 @@ def test_the_same_mesh_as_the_command_line_bitwise(tmp_path, msh, geometry, orde
     assert result.quality["min_q3"] == pytest.approx(result.cell_quality[:, 2].min())
 
 
+def test_the_built_in_2d_case_as_the_command_line_s_demo(tmp_path):
+    subprocess.run([str(cli()), "demo", "--output-dir", str(tmp_path)], check=True, capture_output=True)
+    mesh = hocurve.demo_mesh("cylinder-2d")
+    result = mesh.run(4, progress=True)
+    mesh.write(tmp_path / "py-2d.vtu")
+    assert (tmp_path / "py-2d.vtu").read_bytes() == (tmp_path / "demo-2d.vtu").read_bytes()
+    assert result.valid
+    with pytest.raises(hocurve.InvalidInputError, match="unknown demo case"):
+        hocurve.demo_mesh("sphere")
+
+
 def test_a_projector_that_raises_leaves_the_mesh_unchanged():
     calls = []
 
