@@ -7,7 +7,7 @@
 //! to check for Ctrl-C between stages.
 
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex, TryLockError};
+use std::sync::{Arc, Mutex, MutexGuard, TryLockError};
 
 use hocurve::curve::{Formulation, Progress, Stage};
 use hocurve::geometry::{Projector, Shape, ShapeProjector};
@@ -142,15 +142,18 @@ struct NativeMesh {
 
 impl NativeMesh {
     /// The session, or an error if another thread is running it.
-    fn with<R>(&self, py: Python<'_>, f: impl FnOnce(&mut Session) -> Result<R, Error>) -> PyResult<R> {
-        let mut s = match self.session.try_lock() {
-            Ok(s) => s,
-            Err(TryLockError::Poisoned(p)) => p.into_inner(),
+    fn lock(&self, py: Python<'_>) -> PyResult<MutexGuard<'_, Session>> {
+        match self.session.try_lock() {
+            Ok(s) => Ok(s),
+            Err(TryLockError::Poisoned(p)) => Ok(p.into_inner()),
             Err(TryLockError::WouldBlock) => {
-                return Err(py_error(py, &invalid("the mesh is busy with a run in another thread")));
+                Err(py_error(py, &invalid("the mesh is busy with a run in another thread")))
             }
-        };
-        f(&mut s).map_err(|e| py_error(py, &e))
+        }
+    }
+
+    fn with<R>(&self, py: Python<'_>, f: impl FnOnce(&mut Session) -> Result<R, Error>) -> PyResult<R> {
+        f(&mut *self.lock(py)?).map_err(|e| py_error(py, &e))
     }
 }
 
@@ -299,13 +302,7 @@ impl NativeMesh {
     /// return cancels. Ctrl-C cancels too (KeyboardInterrupt is raised).
     #[pyo3(signature = (increments, progress=None))]
     fn run(&self, py: Python<'_>, increments: usize, progress: Option<Py<PyAny>>) -> PyResult<()> {
-        let mut s = match self.session.try_lock() {
-            Ok(s) => s,
-            Err(TryLockError::Poisoned(p)) => p.into_inner(),
-            Err(TryLockError::WouldBlock) => {
-                return Err(py_error(py, &invalid("the mesh is busy with a run in another thread")));
-            }
-        };
+        let mut s = self.lock(py)?;
         self.raised.lock().unwrap_or_else(|p| p.into_inner()).take();
         // Ctrl-C: Python runs its signal handlers on the main thread only,
         // so the calling thread watches for them while a thread of ours
@@ -341,7 +338,7 @@ impl NativeMesh {
                         watcher.unpark();
                         r
                     })
-                    .map_err(|e| Error::InvalidInput(format!("cannot start the run's thread: {e}")))?;
+                    .map_err(|e| format!("cannot start the run's thread: {e}"))?;
                 while !run.is_finished() {
                     std::thread::park_timeout(std::time::Duration::from_millis(50));
                     if let Err(e) = Python::attach(|py| py.check_signals()) {
@@ -349,14 +346,15 @@ impl NativeMesh {
                         cancel.store(true, Ordering::Relaxed);
                     }
                 }
-                run.join().unwrap_or_else(|_| Err(Error::InvalidInput("internal error: the run panicked".into())))
+                run.join().map_err(|_| "internal error: the run panicked; the mesh is unchanged".to_string())
             })
         });
         s.set_progress(None);
         drop(s);
         match result {
-            Ok(()) => Ok(()),
-            Err(e) => {
+            Err(internal) => Err(PyRuntimeError::new_err(internal)),
+            Ok(Ok(())) => Ok(()),
+            Ok(Err(e)) => {
                 if let Some(raised) = failed.lock().unwrap_or_else(|p| p.into_inner()).take() {
                     return Err(raised);
                 }
