@@ -311,7 +311,7 @@ class Mesh:
                 int(max_iterations), adaptive, int(max_splits), caps == "remove", bool(retry), bool(repair),
                 bool(condense), bool(optimize), solver, int(threads),
             )
-        with _progress(progress, increments) as callback, _errors():
+        with _progress(progress, increments) as callback, _interruptible(), _errors():
             self._native.run(int(increments), callback)
         return self.result(ordering)
 
@@ -371,6 +371,24 @@ def _order(dim: int, nodes_per_cell: int) -> int:
         if n == nodes_per_cell:
             return p
     raise HocurveError(f"no order has {nodes_per_cell} nodes per cell in {dim}D")
+
+
+@contextlib.contextmanager
+def _interruptible() -> Iterator[None]:
+    """Ctrl-C raises KeyboardInterrupt during a run, which then stops
+    cleanly, even where SIGINT was left to kill the process (gmsh's
+    ``initialize`` does that, and its ``finalize`` does not undo it)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) != signal.SIG_DFL:
+        yield
+        return
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 @contextlib.contextmanager

@@ -163,7 +163,11 @@ def test_the_gil_is_released_during_a_run():
     assert during > 100_000, during
 
 
-def test_ctrl_c_cancels_the_run_and_keeps_the_mesh():
+@pytest.mark.parametrize("killing", [False, True])
+def test_ctrl_c_cancels_the_run_and_keeps_the_mesh(killing):
+    # gmsh.initialize() leaves SIGINT killing the process (SIG_DFL), even
+    # after gmsh.finalize(); a run still turns Ctrl-C into KeyboardInterrupt.
+    previous = signal.signal(signal.SIGINT, signal.SIG_DFL if killing else signal.default_int_handler)
     mesh = sphere_mesh(shapes=SPHERE_SHAPE)
     before = mesh.result()
     stages = []
@@ -173,8 +177,12 @@ def test_ctrl_c_cancels_the_run_and_keeps_the_mesh():
         if stage == "increment" and step == 1:
             os.kill(os.getpid(), signal.SIGINT)
 
-    with pytest.raises(KeyboardInterrupt):
-        mesh.run(4, progress=progress)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            mesh.run(4, progress=progress)
+        assert signal.getsignal(signal.SIGINT) == (signal.SIG_DFL if killing else signal.default_int_handler)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert "increment" in stages
     after = mesh.result()
     assert np.array_equal(after.nodes, before.nodes) and after.report == {}
