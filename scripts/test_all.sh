@@ -55,7 +55,8 @@ if [ "$py_rc" -eq 5 ]; then
 fi
 
 step "Python package: pip install ./python; pytest -q tests/python_pkg"
-if "$venv/bin/python" -m pip install --quiet --no-build-isolation "$repo/python"; then
+# maturin (pinned in the venv, no build isolation) runs as a command: the venv's bin first on PATH.
+if PATH="$venv/bin:$PATH" "$venv/bin/python" -m pip install --quiet --no-build-isolation "$repo/python"; then
     "$venv/bin/python" -m pytest -q -p no:cacheprovider tests/python_pkg
     pkg_rc=$?
 else
