@@ -282,6 +282,37 @@ def test_gmsh_model_round_trip_on_a_step_part(tmp_path):
         gmsh.finalize()
 
 
+def test_gmsh_model_round_trip_in_2d():
+    gmsh.initialize(["-noenv"], readConfigFiles=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add("plate")
+        plate = gmsh.model.occ.addRectangle(0, 0, 0, 2, 1)
+        hole = gmsh.model.occ.addDisk(1, 0.5, 0, 0.25, 0.25)
+        gmsh.model.occ.cut([(2, plate)], [(2, hole)])
+        gmsh.model.occ.synchronize()
+        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.15)
+        gmsh.model.mesh.generate(2)
+        n_before = len(gmsh.model.mesh.getElements(2)[1][0])
+        result = hocurve.gmsh.curve_model(3)
+        assert result.valid and result.nodes.shape[1] == 2 and len(result.cells) == n_before
+        types, tags, _ = gmsh.model.mesh.getElements(2)
+        assert list(types) == [gmsh.model.mesh.getElementType("triangle", 3)]
+        assert gmsh.model.mesh.getElementQualities(tags[0], "minSJ").min() > 0
+        for _, tag in gmsh.model.getEntities(1):
+            types, _, _ = gmsh.model.mesh.getElements(1, tag)
+            assert list(types) == [gmsh.model.mesh.getElementType("line", 3)]
+            _, coords, _ = gmsh.model.mesh.getNodes(1, tag, includeBoundary=True)
+            closest, _ = gmsh.model.getClosestPoint(1, tag, coords)
+            # gmsh's nodes are the equispaced points of the curve, which the
+            # engine interpolates at Gauss-Lobatto points: off the circle by
+            # the interpolation error (5e-5 here), where a straight edge's
+            # midpoint would be h^2 / 8r = 0.011 off.
+            assert np.abs(np.asarray(closest) - coords).max() < 1e-3, tag
+    finally:
+        gmsh.finalize()
+
+
 @pytest.mark.skipif(not CAD.is_dir(), reason=f"{CAD} (the benchmark STEP parts) is not here")
 @pytest.mark.parametrize("part, size", [("screw.step", 1.5), ("component8.step", 2.5)])
 def test_gmsh_model_round_trip_on_a_benchmark_part(tmp_path, part, size):
