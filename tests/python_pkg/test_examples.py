@@ -41,3 +41,12 @@ def test_plot_example_draws_the_mesh(tmp_path):
     run = subprocess.run([sys.executable, str(EXAMPLES / "plot_2d.py"), str(out)], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 10_000
+
+
+def test_the_readme_shows_the_step_example_as_it_is_tested():
+    readme = (REPO / "README.md").read_text()
+    block = readme.split("A STEP part curved at order 3 through gmsh", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
+    example = (EXAMPLES / "curve_step.py").read_text()
+    code = example.split('"""', 2)[2].lstrip("\n")
+    assert block == code
+    assert len([line for line in code.splitlines() if line.strip() and not line.startswith("import")]) <= 10
