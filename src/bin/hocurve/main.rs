@@ -401,10 +401,7 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
     }
     // Fail before computing if an output cannot be written.
     for p in std::iter::once(output.as_path()).chain(args.get("report").map(Path::new)) {
-        let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-        if !dir.is_dir() {
-            return Err(Error::Io(format!("cannot write {}: directory {} does not exist", p.display(), dir.display())));
-        }
+        check_directory_exists(p)?;
     }
     let msh = io::gmsh::read_msh(&input)?;
     let mut mesh = io::gmsh::to_linear_mesh(&msh)?;
@@ -425,11 +422,18 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
     write_mesh(&output, &curved)?;
     eprintln!("wrote {}", output.display());
     if let Some(r) = args.get("report") {
-        write_text_atomic(
-            Path::new(r),
-            &(report::curve_report_json(&curved.report, opts.spacing, Some(&output)) + "\n"),
-        )?;
+        let text = report::curve_report_json(&curved.report, opts.spacing, Some(&output));
+        write_text_atomic(Path::new(r), &(text + "\n"))?;
         eprintln!("wrote {r}");
+    }
+    Ok(())
+}
+
+/// An error if the directory `path` would be written in does not exist.
+fn check_directory_exists(path: &Path) -> Result<()> {
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    if !dir.is_dir() {
+        return Err(Error::Io(format!("cannot write {}: directory {} does not exist", path.display(), dir.display())));
     }
     Ok(())
 }
