@@ -7,6 +7,7 @@
 
 use std::path::Path;
 
+use hocurve::curve::OptimizeOptions;
 use hocurve::geometry::{Shape, ShapeProjector};
 use hocurve::mesh::{LinearMesh, NodeConstraint};
 use hocurve::{curve, CurveOptions, CurvedMesh, Error, Formulation};
@@ -300,4 +301,11 @@ fn a_coarse_gmsh_torus_cavity_is_untangled_where_the_elastic_stage_stops_short()
     assert_eq!(c.report.quality.n_invalid, 0);
     assert!(c.report.elastic_stop.is_some(), "the elastic stage stopped short");
     assert!(c.report.optimization.invalid_before > 0);
+    // Sliding in the tangent planes first (for slow projectors): here it
+    // does not untangle alone, and the projected slides after it do, to the
+    // same mesh.
+    let optimize = OptimizeOptions { tangent_first: true, ..Default::default() };
+    let t = run(&mesh, &projector, &CurveOptions { order: 2, optimize, ..Default::default() }).unwrap();
+    assert_eq!(t.report.quality.n_invalid, 0);
+    assert_eq!(t.mesh.coords, c.mesh.coords);
 }

@@ -252,6 +252,7 @@ impl NativeMesh {
         repair: bool,
         condense: bool,
         optimize: bool,
+        tangent_first: bool,
         solver: &str,
         threads: usize,
     ) -> PyResult<()> {
@@ -290,6 +291,7 @@ impl NativeMesh {
                 ..s.options().clone()
             };
             opts.optimize.enabled = optimize;
+            opts.optimize.tangent_first = tangent_first;
             hocurve::curve::validate_options(&opts)?;
             s.set_threads(threads);
             *self.pending.lock().unwrap_or_else(|p| p.into_inner()) = Some(opts);

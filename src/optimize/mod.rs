@@ -68,6 +68,14 @@ pub struct OptimizeOptions {
     /// centroid ([`split`]), so that interior nodes reach every point of
     /// them, and optimise again (default on).
     pub split: bool,
+    /// For a slow projector (gmsh's `getClosestPoint` through Python, at
+    /// 0.1 to 0.4 ms a point): sliding nodes move in their tangent planes
+    /// and are projected after each pass, and at every step only where that
+    /// does not make the patch valid and lift it above the threshold (on
+    /// the five STEP parts at p = 2, 3: a fifth to a third of the projector
+    /// calls where most slides untangle; the meshes as valid, the floor
+    /// sometimes lower). Default off: every step projected.
+    pub tangent_first: bool,
 }
 
 /// Default Q3 below which a valid cell is optimised.
@@ -75,7 +83,7 @@ pub const DEFAULT_THRESHOLD: f64 = 0.2;
 
 impl Default for OptimizeOptions {
     fn default() -> Self {
-        OptimizeOptions { enabled: true, threshold: DEFAULT_THRESHOLD, slide: true, split: true }
+        OptimizeOptions { enabled: true, threshold: DEFAULT_THRESHOLD, slide: true, split: true, tangent_first: false }
     }
 }
 
@@ -151,6 +159,8 @@ struct Pass<'r> {
     layers: usize,
     rule: &'r SampleRule,
     slide_below: f64,
+    /// [`OptimizeOptions::tangent_first`].
+    tangent_first: bool,
     baseline: Option<&'r Baseline>,
     /// The energy of the cells whose Q3 is below `focus.0` counts
     /// `focus.1` times (outside the polish: every cell alike).
@@ -211,7 +221,7 @@ pub fn optimize(
         // Projector calls are serialised: a host's callback is called from
         // one thread at a time.
         let projector = projector.filter(|_| opts.slide).map(Mutex::new);
-        let mut stage = Stage::new(&ctx, projector.as_ref(), opts.threshold, &state, &mut report);
+        let mut stage = Stage::new(&ctx, projector.as_ref(), opts, &state, &mut report);
         if let Some(split) = stage.run(&mut state, basis, opts.split) {
             parent = split;
         }
@@ -262,6 +272,8 @@ struct Stage<'s, 'p> {
     ctx: &'s PatchContext<'s>,
     projector: Option<&'s Mutex<&'p dyn Projector>>,
     threshold: f64,
+    /// [`OptimizeOptions::tangent_first`].
+    tangent_first: bool,
     /// The cells of the patches kept so far.
     touched: Vec<bool>,
     /// The nodes those patches moved.
@@ -274,13 +286,14 @@ impl<'s, 'p> Stage<'s, 'p> {
     fn new(
         ctx: &'s PatchContext<'s>,
         projector: Option<&'s Mutex<&'p dyn Projector>>,
-        threshold: f64,
+        opts: &OptimizeOptions,
         state: &MeshState,
         report: &'s mut OptimizeReport,
     ) -> Self {
         let touched = vec![false; state.mesh.n_cells()];
         let moved = vec![false; state.mesh.n_nodes()];
-        Stage { ctx, projector, threshold, touched, moved, report }
+        let (threshold, tangent_first) = (opts.threshold, opts.tangent_first);
+        Stage { ctx, projector, threshold, tangent_first, touched, moved, report }
     }
 
     /// Every phase in turn, then the report's totals; the cells' parents if some were split.
@@ -392,7 +405,7 @@ impl<'s, 'p> Stage<'s, 'p> {
 
     /// A pass of `layers` layers sampled by `rule`, sliding below the threshold.
     fn pass<'r>(&self, layers: usize, rule: &'r SampleRule) -> Pass<'r> {
-        Pass { layers, rule, slide_below: self.threshold, baseline: None, focus: (0.0, 1.0) }
+        Pass { layers, rule, slide_below: self.threshold, tangent_first: self.tangent_first, baseline: None, focus: (0.0, 1.0) }
     }
 
     /// One round: the patches around `seeds` optimised in parallel, the improved ones kept.
@@ -526,10 +539,12 @@ impl<'a> PatchContext<'a> {
     /// `patch.sliding`, `dim` coordinates each), or None if the optimisation
     /// did not improve the patch.
     ///
-    /// First the interior nodes alone; then, if cells are still invalid and
-    /// a projector is given, the interior and boundary nodes together, the
-    /// boundary ones moving in their entity's tangent space (a frame found
-    /// through the projector) and projected back onto it after each pass.
+    /// First the interior nodes alone; then, if cells are still invalid or
+    /// below `slide_below` and a projector is given, the interior and
+    /// boundary nodes together, the boundary ones moving in their entity's
+    /// tangent space (a frame found through the projector): projected back
+    /// onto it after each pass, and if that does not make the patch valid
+    /// and above `slide_below`, projected at every step.
     /// In the polish (a `baseline`), interior and boundary nodes move
     /// together at once, and the interior nodes alone only if that slide is
     /// not kept: one minimisation instead of two where it is.
@@ -537,7 +552,7 @@ impl<'a> PatchContext<'a> {
         &self,
         view: &MeshView,
         patch: &Patch,
-        Pass { rule, slide_below, baseline, focus, .. }: Pass,
+        Pass { rule, slide_below, tangent_first, baseline, focus, .. }: Pass,
         projector: Option<&Mutex<&dyn Projector>>,
     ) -> Option<Vec<f64>> {
         if patch.free.is_empty() && patch.sliding.is_empty() {
@@ -567,7 +582,19 @@ impl<'a> PatchContext<'a> {
         work.problem(None).minimise(&mut pos, interior, 0.05 * work.h);
         let mut best = (work.score(&pos), pos.clone());
         if let (Some(projector), true, None) = (sliding, best.0 .0 > 0 || best.0 .1 < slide_below, baseline) {
-            work.slide(projector, &mut pos, &mut best, false);
+            // With `tangent_first`, in the tangent planes first, projected
+            // after each pass; if that does not make the patch valid and
+            // lift it above the threshold, with every step projected, from
+            // where the interior nodes left it.
+            let tangent = tangent_first.then(|| {
+                let (mut at, mut found) = (pos.clone(), best.clone());
+                work.slide(projector, &mut at, &mut found, true);
+                found
+            });
+            match tangent {
+                Some(found) if found.0 .0 == 0 && found.0 .1 >= slide_below => best = found,
+                _ => work.slide(projector, &mut pos, &mut best, false),
+            }
         }
         result(best)
     }
