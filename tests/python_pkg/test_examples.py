@@ -5,6 +5,7 @@ import sys
 from pathlib import Path
 
 import gmsh
+from gmsh_session import gmsh_session
 
 REPO = Path(__file__).resolve().parents[2]
 EXAMPLES = REPO / "examples" / "python"
@@ -12,28 +13,20 @@ EXAMPLES = REPO / "examples" / "python"
 
 def test_curve_step_example_writes_a_valid_curved_mesh(tmp_path):
     step = tmp_path / "part.step"
-    gmsh.initialize(["-noenv"], readConfigFiles=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
+    with gmsh_session():
         box = gmsh.model.occ.addBox(0, 0, 0, 4, 3, 2)
         hole = gmsh.model.occ.addCylinder(2, 1.5, -1, 0, 0, 4, 0.7)
         gmsh.model.occ.cut([(3, box)], [(3, hole)])
         gmsh.model.occ.synchronize()
         gmsh.write(str(step))
-    finally:
-        gmsh.finalize()
     run = subprocess.run([sys.executable, str(EXAMPLES / "curve_step.py"), str(step)], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
     assert "valid: True" in run.stdout, run.stdout
-    gmsh.initialize(["-noenv"], readConfigFiles=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
+    with gmsh_session():
         gmsh.open(str(tmp_path / "part-p3.msh"))
         types, tags, _ = gmsh.model.mesh.getElements(3)
         assert list(types) == [gmsh.model.mesh.getElementType("tetrahedron", 3)]
         assert gmsh.model.mesh.getElementQualities(tags[0], "minSJ").min() > 0
-    finally:
-        gmsh.finalize()
 
 
 def test_plot_example_draws_the_mesh(tmp_path):

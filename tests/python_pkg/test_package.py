@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 
 import gmsh
+from gmsh_session import gmsh_session
 import meshio
 import numpy as np
 import pytest
@@ -204,16 +205,12 @@ def test_meshio_round_trip(tmp_path):
     assert np.array_equal(back.cells[0].data, result.cells)
     assert np.allclose(back.points, result.nodes)
     # gmsh reads it as 20-node tetrahedra, valid by its own Jacobian bounds.
-    gmsh.initialize(["-noenv"], readConfigFiles=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
+    with gmsh_session():
         gmsh.open(str(path))
         types, tags, _ = gmsh.model.mesh.getElements(3)
         assert list(types) == [gmsh.model.mesh.getElementType("tetrahedron", 3)]
         q = gmsh.model.mesh.getElementQualities(tags[0], "minSJ")
         assert len(q) == len(result.cells) and q.min() > 0
-    finally:
-        gmsh.finalize()
     # 2D: the z column is added for meshio and dropped on the way back in.
     plate = hocurve.from_meshio(meshio.read(DATA / "plate_hole_2d.msh"), shapes={5: "circle:1,0.5,0.25"})
     m2 = hocurve.to_meshio(plate.run(2))
@@ -261,9 +258,7 @@ def _check_written(out: Path, result: hocurve.Result, order: int) -> None:
 
 
 def test_gmsh_model_round_trip_on_a_step_part(tmp_path):
-    gmsh.initialize(["-noenv"], readConfigFiles=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
+    with gmsh_session():
         step = tmp_path / "part.step"
         _step_part(step)
         out = tmp_path / "part-p2.msh"
@@ -278,14 +273,10 @@ def test_gmsh_model_round_trip_on_a_step_part(tmp_path):
         assert list(types) == [gmsh.model.mesh.getElementType("triangle", 2)]
         gmsh.model.remove()
         _check_written(out, result, 2)
-    finally:
-        gmsh.finalize()
 
 
 def test_gmsh_model_round_trip_in_2d():
-    gmsh.initialize(["-noenv"], readConfigFiles=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
+    with gmsh_session():
         gmsh.model.add("plate")
         plate = gmsh.model.occ.addRectangle(0, 0, 0, 2, 1)
         hole = gmsh.model.occ.addDisk(1, 0.5, 0, 0.25, 0.25)
@@ -309,20 +300,14 @@ def test_gmsh_model_round_trip_in_2d():
             # the interpolation error (5e-5 here), where a straight edge's
             # midpoint would be h^2 / 8r = 0.011 off.
             assert np.abs(np.asarray(closest) - coords).max() < 1e-3, tag
-    finally:
-        gmsh.finalize()
 
 
 @pytest.mark.skipif(not CAD.is_dir(), reason=f"{CAD} (the benchmark STEP parts) is not here")
 @pytest.mark.parametrize("part, size", [("screw.step", 1.5), ("component8.step", 2.5)])
 def test_gmsh_model_round_trip_on_a_benchmark_part(tmp_path, part, size):
-    gmsh.initialize(["-noenv"], readConfigFiles=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
+    with gmsh_session():
         out = tmp_path / "out.msh"
         result = _curve_step(CAD / part, size, 2, out)
         assert result.valid
         gmsh.model.remove()
         _check_written(out, result, 2)
-    finally:
-        gmsh.finalize()
