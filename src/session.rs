@@ -310,17 +310,6 @@ impl Session {
         self.progress = progress;
     }
 
-    /// The built-in linear solver of the next runs (default
-    /// [`SolverChoice::Auto`]); a host's solver set with
-    /// [`Session::set_linear_solver`] takes precedence while set.
-    pub fn set_solver(&mut self, solver: SolverChoice) -> Result<()> {
-        if matches!(solver, SolverChoice::External(_)) {
-            return Err(Error::InvalidInput("a host's solver is set with set_linear_solver".into()));
-        }
-        self.opts.solver = solver;
-        Ok(())
-    }
-
     /// The host's linear solver for every system of the next runs; None
     /// restores the built-in one (`options().solver`).
     pub fn set_linear_solver(&mut self, solver: Option<ExternalSolver>) {
