@@ -72,6 +72,8 @@ pub mod solver;
 /// Built-in demonstration and test meshes (the `demo` feature, on by default).
 #[cfg(any(feature = "demo", feature = "internals", test))]
 pub mod cases;
+#[cfg(feature = "mpi")]
+pub mod distributed;
 pub mod ffi;
 pub mod io;
 

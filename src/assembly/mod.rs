@@ -323,6 +323,12 @@ pub trait ElementKernel: Sync {
         re: Option<&mut [f64]>,
         ws: &mut Self::Workspace,
     ) -> std::result::Result<(), f64>;
+    /// The material, when this is the linear elastic kernel of
+    /// [`LinearElasticKernel::for_nodes`] (which a distributed elastic
+    /// stage builds again on each process).
+    fn linear_material(&self) -> Option<crate::material::LinearElastic> {
+        None
+    }
 }
 
 /// The element's right-hand side b = −re − K_ed u_d at every local dof (the

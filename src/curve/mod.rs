@@ -21,17 +21,20 @@ use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing};
 use crate::solver::{DirectOrdering, SolveLog, SolverChoice};
 use crate::{Error, Result, SolverFailure};
 
+mod parallel;
 mod prepare;
 mod stepping;
 
 pub use crate::material::default_fibres;
+pub use parallel::{Collective, ElasticBackend, Parallel};
 pub use prepare::Prepared;
 pub use stepping::{ElasticStop, StepBack, StepBackReason, DEFAULT_MAX_SPLITS, MAX_SPLITS};
 // The elastic stage on its own, for the crate's tests.
+pub use stepping::{IncrementsReport, Stepping};
 #[cfg(feature = "internals")]
-pub use stepping::{add_rate, solve_increments, solve_increments_from, IncrementsReport, Predictor, Stepping};
+pub use stepping::{add_rate, solve_increments, solve_increments_from, Predictor};
 #[cfg(not(feature = "internals"))]
-use stepping::{solve_increments, solve_increments_from, IncrementsReport, Stepping};
+pub(crate) use stepping::{solve_increments, solve_increments_from};
 
 /// The solid-mechanics formulation (paper Table 1).
 #[non_exhaustive]
@@ -144,6 +147,10 @@ pub struct CurveOptions {
     /// instead of refused (see [`CurveReport::elastic_stop`]), and the
     /// optimisation then has to make it valid.
     pub optimize: OptimizeOptions,
+    /// Where the elastic stage runs (default [`Parallel::Serial`]: here);
+    /// a distributed run (`hocurve::distributed`, the `mpi` feature) sets
+    /// its backend.
+    pub parallel: Parallel,
 }
 
 impl CurveOptions {
@@ -178,6 +185,7 @@ impl Default for CurveOptions {
             max_splits: DEFAULT_MAX_SPLITS,
             condense: true,
             optimize: OptimizeOptions::default(),
+            parallel: Parallel::Serial,
         }
     }
 }
@@ -693,6 +701,7 @@ impl ElasticSetup {
             max_splits: opts.max_splits,
             condense: opts.condense,
             finish: opts.optimize.enabled,
+            parallel: opts.parallel.clone(),
         };
         let mode = match opts.formulation {
             Formulation::Cil | Formulation::Nonlinear => TangentMode::Consistent,
@@ -700,16 +709,7 @@ impl ElasticSetup {
         };
         let linear_iso = matches!(opts.formulation, Formulation::Linear | Formulation::Ile)
             && !opts.material.is_transversely_isotropic();
-        // Every isotropic model is calibrated so that c(F = I) = c_lin: the fast
-        // kernel, with a rule of degree 2p − 2, exact on straight-sided cells
-        // (∇N_a·∇N_b has degree 2p − 2 there): the symmetric rule has 24
-        // points at p = 4 in 3D, against 46 for degree 2p and 64 for a
-        // collapsed rule of degree 2p − 2. Curved cells are integrated
-        // approximately by any rule.
-        let linear_kernel = LinearElasticKernel {
-            cache: ElementCache::new(&basis, &simplex_rule(simplex, (2 * opts.order).saturating_sub(2).max(1))),
-            material,
-        };
+        let linear_kernel = LinearElasticKernel::for_nodes(&elevated.nodes, material);
         let finish_stepping = Stepping { increments: 1, adaptive: false, finish: false, ..stepping.clone() };
         Ok(ElasticSetup {
             increments,

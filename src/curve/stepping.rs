@@ -1,8 +1,10 @@
 //! Load stepping: the increments of the elastic stage, adaptive splitting
 //! of the rejected ones, and the predictor of each increment's solution.
 
+use std::sync::Arc;
 use std::time::Instant;
 
+use super::parallel::{self, Collective, Parallel};
 use super::{Stage, Timings};
 use crate::assembly::{multigrid_levels, DofMap, ElementKernel, System};
 use crate::mesh::HighOrderMesh;
@@ -38,6 +40,9 @@ pub struct Stepping {
     /// At the limit of adaptive stepping, stop at the last accepted geometry
     /// and report where ([`IncrementsReport::stopped`]) instead of failing.
     pub finish: bool,
+    /// Where the increments run: here, handed to a backend, or as one
+    /// process's part of a distributed stage.
+    pub parallel: Parallel,
 }
 
 impl Stepping {
@@ -55,6 +60,7 @@ impl Stepping {
             max_splits: DEFAULT_MAX_SPLITS,
             condense: false,
             finish: false,
+            parallel: Parallel::Serial,
         }
     }
 }
@@ -250,8 +256,17 @@ pub fn solve_increments_from<K: ElementKernel>(
             stepping.max_splits
         )));
     }
+    if let Parallel::Lead(backend) = &stepping.parallel {
+        let material = kernel.linear_material().ok_or_else(|| {
+            Error::InvalidInput(
+                "a distributed run curves with the linear or ILE formulation and an isotropic material".into(),
+            )
+        })?;
+        return backend.solve_increments(mesh, material, ubar, &stepping, rate, timings, tick);
+    }
     let dofs = if stepping.condense { DofMap::condensed(mesh) } else { DofMap::new(mesh) };
-    if dofs.n_free == 0 || ubar.iter().all(|&u| u == 0.0) {
+    let collective = stepping.parallel.part();
+    if !parallel::any(collective, dofs.n_free > 0 && ubar.iter().any(|&u| u != 0.0)) {
         for (x, u) in mesh.coords.iter_mut().zip(ubar) {
             *x += u;
         }
@@ -595,6 +610,8 @@ struct IncrementContext<'a, K> {
     residual: bool,
     newton: Option<(f64, usize)>,
     check: Option<quality::ValidityCheck>,
+    /// The other processes of a distributed stage.
+    collective: Option<Arc<dyn Collective>>,
 }
 
 impl<'a, K: ElementKernel> IncrementContext<'a, K> {
@@ -621,6 +638,10 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
             residual: stepping.residual || stepping.newton.is_some(),
             newton: stepping.newton,
             check,
+            collective: match &stepping.parallel {
+                Parallel::Part(c) => Some(c.clone()),
+                _ => None,
+            },
         })
     }
 
@@ -652,15 +673,41 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
     ) -> std::result::Result<f64, Failure> {
         let t = Instant::now();
         // det J ≤ 0 here is at the start geometry: no split of this increment helps.
-        self.system.assemble(mesh, &mesh.coords, self.kernel, &bufs.step, self.residual).map_err(|e| match e {
-            Error::InvalidElement { cell, message } => Failure::AtStart { cell, detail: message },
-            e => Failure::Fatal(e),
-        })?;
+        let assembled = self.system.assemble(mesh, &mesh.coords, self.kernel, &bufs.step, self.residual);
+        self.agree_on_assembly(assembled)?;
         timings.assembly += t.elapsed().as_secs_f64();
         let r0 = self.system.rhs_norm().max(f64::MIN_POSITIVE);
         self.solve(mesh, &bufs.step, &mut bufs.u, timings, out)?;
         self.system.dofs().add_to(&mut mesh.coords, &bufs.u, Some(&bufs.step));
         Ok(r0)
+    }
+
+    /// A failed assembly as a rejection of the increment, the same on every
+    /// process of a distributed stage: an error other than an invalid cell
+    /// first, else the invalid cell with the smallest index.
+    fn agree_on_assembly(&self, assembled: Result<()>) -> std::result::Result<(), Failure> {
+        let Some(collective) = self.collective.as_deref() else {
+            return assembled.map_err(|e| match e {
+                Error::InvalidElement { cell, message } => Failure::AtStart { cell, detail: message },
+                e => Failure::Fatal(e),
+            });
+        };
+        // Keys: 0 for another error, 1 + the cell's index for an invalid cell.
+        let (fatal, invalid) = match assembled {
+            Ok(()) => (None, None),
+            Err(Error::InvalidElement { cell: Some(c), message }) => (None, Some((c, message))),
+            Err(e) => (Some(e), None),
+        };
+        let invalid = parallel::first_cell(Some(collective), invalid).map(|(g, m)| (1 + g as u64, m));
+        let local = fatal.as_ref().map(|e| (0, e.to_string())).or(invalid);
+        match (collective.first(local), fatal) {
+            (None, _) => Ok(()),
+            (Some((0, _)), Some(e)) => Err(Failure::Fatal(e)),
+            (Some((0, message)), None) => {
+                Err(Failure::Fatal(Error::solver(SolverFailure::External, format!("on another process: {message}"))))
+            }
+            (Some((key, detail)), _) => Err(Failure::AtStart { cell: Some(key as usize - 1), detail }),
+        }
     }
 
     /// Solve the assembled system into `x` (free dofs), then recover the
@@ -770,6 +817,10 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
             }
         }
         timings.check += t.elapsed().as_secs_f64();
+        // In a distributed stage, the first cell (in the whole mesh) of any process.
+        let collective = self.collective.as_deref();
+        let agree = |c: Option<usize>| parallel::first_cell(collective, c.map(|c| (c, String::new()))).map(|(g, _)| g);
+        let (new, old) = (agree(new), agree(old));
         match new {
             Some(c) if certified => Err(Failure::Retry {
                 reason: StepBackReason::CertifiedInvalid,

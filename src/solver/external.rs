@@ -63,6 +63,15 @@ impl CsrView<'_> {
 /// ```
 pub trait SystemSolver: Send + Sync {
     fn solve(&self, a: CsrView<'_>, rhs: &[f64], x: &mut [f64]) -> std::result::Result<(), String>;
+    /// [`Self::solve`], and the solver's iterations when it counts them
+    /// (the report gives them per solve); by default it does not.
+    fn solve_counted(&self, a: CsrView<'_>, rhs: &[f64], x: &mut [f64]) -> std::result::Result<Option<usize>, String> {
+        self.solve(a, rhs, x).map(|()| None)
+    }
+    /// The solver's name in the report (default "external").
+    fn name(&self) -> &'static str {
+        "external"
+    }
 }
 
 impl<F> SystemSolver for F
@@ -178,7 +187,7 @@ impl ExternalAdapter {
 
 impl LinearSolver for ExternalAdapter {
     fn name(&self) -> &'static str {
-        "external"
+        self.host.0.name()
     }
 
     fn solve(&mut self, pattern: &SymmetricCsc, values: &[f64], rhs: &[f64], x: &mut [f64]) -> Result<SolveStats> {
@@ -195,7 +204,7 @@ impl LinearSolver for ExternalAdapter {
         }
         self.csr.values_into(values, &mut self.values);
         let a = CsrView { n: self.csr.n, row_ptr: &self.csr.row_ptr, col_idx: &self.csr.col_idx, values: &self.values };
-        self.host.0.solve(a, rhs, x).map_err(|m| {
+        let iterations = self.host.0.solve_counted(a, rhs, x).map_err(|m| {
             Error::solver(SolverFailure::External, format!("the external linear solver returned an error: {m}"))
         })?;
         if let Some(i) = x.iter().position(|v| !v.is_finite()) {
@@ -208,7 +217,7 @@ impl LinearSolver for ExternalAdapter {
                 ),
             ));
         }
-        Ok(SolveStats { iterations: 0, solved_by: SolvedBy::External, fallback: None })
+        Ok(SolveStats { iterations: iterations.unwrap_or(0), solved_by: SolvedBy::External, fallback: None })
     }
 }
 

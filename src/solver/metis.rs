@@ -1,5 +1,6 @@
-//! The one METIS call of the crate: `METIS_NodeND`, nested dissection of a
-//! graph.
+//! The METIS calls of the crate: `METIS_NodeND`, nested dissection of a
+//! graph, and `METIS_PartMeshDual`, the partition of a mesh's cells for a
+//! distributed run.
 //!
 //! METIS 5.2.1 and GKlib are vendored in `third_party/metis` and compiled by
 //! `build.rs` with 32-bit `idx_t` and every global symbol renamed
@@ -33,6 +34,74 @@ extern "C" {
         perm: *mut Idx,
         iperm: *mut Idx,
     ) -> c_int;
+}
+
+#[cfg_attr(not(feature = "mpi"), allow(dead_code))]
+extern "C" {
+    #[link_name = "hocurve_METIS_PartMeshDual"]
+    fn metis_part_mesh_dual(
+        ne: *mut Idx,
+        nn: *mut Idx,
+        eptr: *mut Idx,
+        eind: *mut Idx,
+        vwgt: *mut Idx,
+        vsize: *mut Idx,
+        ncommon: *mut Idx,
+        nparts: *mut Idx,
+        tpwgts: *mut f32,
+        options: *mut Idx,
+        objval: *mut Idx,
+        epart: *mut Idx,
+        npart: *mut Idx,
+    ) -> c_int;
+}
+
+/// The part (0..`parts`) of each of `n_cells` cells of `vertices_per_cell`
+/// vertices each (`cells`, vertex indices below `n_vertices`), balanced
+/// and with few facets between parts: METIS's k-way partition of the dual
+/// graph whose edges are the shared facets (`vertices_per_cell − 1`
+/// common vertices). One part: all zeros, without METIS.
+#[cfg_attr(not(feature = "mpi"), allow(dead_code))]
+pub fn try_part_cells(cells: &[usize], vertices_per_cell: usize, n_vertices: usize, parts: usize) -> Result<Vec<usize>> {
+    let n_cells = cells.len() / vertices_per_cell.max(1);
+    if parts <= 1 || n_cells <= 1 {
+        return Ok(vec![0; n_cells]);
+    }
+    let too_big = || Error::solver(SolverFailure::Setup, "METIS_PartMeshDual: the mesh exceeds 32-bit indices");
+    let mut ne = Idx::try_from(n_cells).map_err(|_| too_big())?;
+    let mut nn = Idx::try_from(n_vertices).map_err(|_| too_big())?;
+    let mut eptr: Vec<Idx> = (0..=n_cells).map(|c| (c * vertices_per_cell) as Idx).collect();
+    let mut eind: Vec<Idx> = cells.iter().map(|&v| v as Idx).collect();
+    let mut ncommon = (vertices_per_cell - 1) as Idx;
+    let mut nparts = parts as Idx;
+    let mut options = [0 as Idx; METIS_NOPTIONS];
+    let (mut objval, mut epart, mut npart) = (0 as Idx, vec![0 as Idx; n_cells], vec![0 as Idx; n_vertices]);
+    let _guard = METIS_LOCK.lock().unwrap_or_else(|e| e.into_inner());
+    // SAFETY: the arrays have the lengths METIS_PartMeshDual expects
+    // (eptr: ne + 1; eind: eptr[ne]; epart: ne; npart: nn; options:
+    // METIS_NOPTIONS); the weights may be null. METIS keeps no pointer.
+    let status = unsafe {
+        metis_set_default_options(options.as_mut_ptr());
+        metis_part_mesh_dual(
+            &mut ne,
+            &mut nn,
+            eptr.as_mut_ptr(),
+            eind.as_mut_ptr(),
+            std::ptr::null_mut(),
+            std::ptr::null_mut(),
+            &mut ncommon,
+            &mut nparts,
+            std::ptr::null_mut(),
+            options.as_mut_ptr(),
+            &mut objval,
+            epart.as_mut_ptr(),
+            npart.as_mut_ptr(),
+        )
+    };
+    if status != METIS_OK {
+        return Err(Error::solver(SolverFailure::Setup, format!("METIS_PartMeshDual failed (status {status})")));
+    }
+    Ok(epart.into_iter().map(|p| p as usize).collect())
 }
 
 /// METIS installs process-wide SIGABRT/SIGTERM handlers for the length of a

@@ -18,7 +18,7 @@ mod direct;
 mod external;
 mod iterative;
 mod lu;
-mod metis;
+pub(crate) mod metis;
 
 pub use crate::sparse::{SparseRows, SymmetricCsc};
 pub use cholesky::{nested_dissection, node_block_size, DirectOrdering, SparseCholesky};

@@ -23,7 +23,7 @@ use hocurve::mesh::Topology;
 use hocurve::solver::{DirectOrdering, SolverChoice};
 use hocurve::{Error, Result};
 
-use crate::{heap, write_text_atomic, Args};
+use super::{heap, write_text_atomic, Args};
 
 /// Largest unknown count of a series by default: the full table takes about
 /// ten minutes on two cores with the direct solver.

@@ -17,6 +17,8 @@
 
 mod bench;
 mod heap;
+#[cfg(feature = "mpi")]
+mod mpi_run;
 mod study;
 
 /// Counts the heap in use, for `hocurve bench`'s memory per phase.
@@ -28,7 +30,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use hocurve::cases;
-use hocurve::curve::{curve, CurveOptions, CurvedMesh, Formulation, Progress, Stage};
+use hocurve::curve::{curve, CurveOptions, CurvedMesh, Formulation, Parallel, Progress, Stage};
 use hocurve::geometry::shapes::{Shape, ShapeProjector};
 use hocurve::io::{self, report};
 use hocurve::material::MaterialModel;
@@ -112,11 +114,17 @@ USAGE:
       iterations and time per unknown against the isotropic mesh.
 ";
 
-fn main() -> ExitCode {
+pub fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
+    // The same source builds `hocurve-mpi`, the command line of a run
+    // spread over MPI processes.
+    #[cfg(feature = "mpi")]
+    if env!("CARGO_BIN_NAME") == "hocurve-mpi" {
+        return mpi_run::main(&args);
+    }
     let result = match args.first().map(String::as_str) {
         Some("demo") => cmd_demo(&args[1..]),
-        Some("curve") => cmd_curve(&args[1..]),
+        Some("curve") => cmd_curve(&args[1..], Parallel::Serial, None),
         Some("quality") => cmd_quality(&args[1..]),
         Some("study") => cmd_study(&args[1..]),
         Some("bench") => bench::cmd_bench(&args[1..]),
@@ -350,7 +358,9 @@ fn cmd_study(argv: &[String]) -> Result<()> {
     Ok(())
 }
 
-fn cmd_curve(argv: &[String]) -> Result<()> {
+/// `hocurve curve`; with `parallel` and `ranks` set, its elastic stages
+/// spread over the processes of an MPI run (the report says how many).
+fn cmd_curve(argv: &[String], parallel: Parallel, ranks: Option<usize>) -> Result<()> {
     let args = Args::parse(
         argv,
         &[
@@ -388,7 +398,7 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
     if args.get("order").is_none() {
         return Err(Error::InvalidInput("curve needs --order P".into()));
     }
-    let opts = options_from(&args, 2)?;
+    let opts = CurveOptions { parallel, ..options_from(&args, 2)? };
     let mut projector = ShapeProjector::new();
     for g in args.all("geometry") {
         let (tag, shape) =
@@ -422,7 +432,10 @@ fn cmd_curve(argv: &[String]) -> Result<()> {
     write_mesh(&output, &curved)?;
     eprintln!("wrote {}", output.display());
     if let Some(r) = args.get("report") {
-        let text = report::curve_report_json(&curved.report, opts.spacing, Some(&output));
+        let mut text = report::curve_report_json(&curved.report, opts.spacing, Some(&output));
+        if let Some(n) = ranks {
+            text = text.replacen('{', &format!("{{\n  \"ranks\": {n},"), 1);
+        }
         write_text_atomic(Path::new(r), &(text + "\n"))?;
         eprintln!("wrote {r}");
     }

@@ -1,0 +1,608 @@
+//! Curving across the processes of an MPI run (the `mpi` feature).
+//!
+//! The first process (rank 0) holds the mesh and runs the whole pipeline:
+//! repair, elevation, placement of the boundary nodes, the optimisation,
+//! certification and quality. Each elastic stage, where nearly all the
+//! memory and time of a large run go (the assembled system and its
+//! preconditioner), is split: rank 0 partitions the cells with METIS, sends
+//! every process its cells with their nodes, and all processes run the
+//! ordinary increment loop on their own cells ([`Parallel::Part`]). The
+//! linear solves go through PETSc ([`petsc::PetscSystem`]: CG with
+//! smoothed-aggregation AMG on the matrix summed from every process's
+//! cells), and every decision that must be the same everywhere (step
+//! back, restart, stop, fail) is agreed through [`MpiCollective`]. The
+//! processes then send their nodes' positions back to rank 0.
+//!
+//! So the system (about 3 KB per unknown at p = 4 in 3D) is spread over the
+//! processes, while the mesh itself (about 100 bytes per unknown) stays
+//! whole on rank 0.
+
+pub mod petsc;
+
+use std::sync::{Arc, Mutex};
+
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+
+use crate::assembly::{DofMap, LinearElasticKernel};
+use crate::curve::{
+    solve_increments_from, Collective, ElasticBackend, IncrementsReport, Parallel, Stage, Stepping, Timings,
+};
+use crate::material::LinearElastic;
+use crate::mesh::{HighOrderMesh, NodeConstraint};
+use crate::reference::{NodeSet, NodeSpacing, Simplex};
+use crate::solver::{CsrView, SystemSolver};
+use crate::solver::{ExternalSolver, SolverChoice};
+use crate::{Error, Result, SolverFailure};
+
+/// PCG's relative tolerance, as the built-in iterative solver's.
+const RTOL: f64 = 1e-5;
+
+/// Commands rank 0 broadcasts to the others.
+const STOP: u8 = 0;
+const SOLVE: u8 = 1;
+
+/// `MPI_COMM_WORLD`, shared by the objects of one run. MPI is initialised
+/// with one thread: every call comes from the thread that runs the curving.
+struct World(SimpleCommunicator);
+// SAFETY: see `World`: the communicator is used from one thread only.
+unsafe impl Send for World {}
+unsafe impl Sync for World {}
+
+/// Rank 0's side: the backend of [`Parallel::Lead`].
+pub struct Lead {
+    world: World,
+}
+
+impl Lead {
+    /// The backend for `world`, whose other ranks run [`serve`].
+    pub fn new(world: SimpleCommunicator) -> Lead {
+        Lead { world: World(world) }
+    }
+
+    /// The options' setting that hands every elastic stage to this backend.
+    pub fn parallel(self: &Arc<Self>) -> Parallel {
+        Parallel::Lead(self.clone())
+    }
+
+    /// Number of processes.
+    pub fn size(&self) -> usize {
+        self.world.0.size() as usize
+    }
+
+    /// Let the other ranks' [`serve`] return.
+    pub fn stop(&self) {
+        let mut cmd = STOP;
+        self.world.0.process_at_rank(0).broadcast_into(&mut cmd);
+    }
+}
+
+/// The other ranks' side: take part in every elastic stage rank 0 starts,
+/// until it calls [`Lead::stop`].
+pub fn serve(world: SimpleCommunicator) -> Result<()> {
+    let world = World(world);
+    loop {
+        let mut cmd = 0u8;
+        world.0.process_at_rank(0).broadcast_into(&mut cmd);
+        if cmd != SOLVE {
+            return Ok(());
+        }
+        let (ints, floats) = receive(&world);
+        let part = Part::decode(&ints, &floats)?;
+        let mut timings = Timings::default();
+        let outcome = part.solve(&world, &mut timings, &mut |_, _, _| Ok(()));
+        if let Ok((mesh, report)) = outcome {
+            send_back(&world, &part, &mesh, report.first_rate.as_deref());
+        }
+    }
+}
+
+/// One process's share of an elastic stage.
+struct Part {
+    mesh: HighOrderMesh,
+    material: LinearElastic,
+    stepping: Stepping,
+    /// Per local node: its index in the whole mesh, and whether this
+    /// process owns it (returns its position).
+    global_node: Vec<usize>,
+    owned: Vec<bool>,
+    /// Per local node: its row block in PETSc's numbering, if a system node.
+    petsc_node: Vec<usize>,
+    global_cell: Vec<usize>,
+    /// This process's rows of the distributed system, and their number in all.
+    first_owned: usize,
+    n_owned: usize,
+    n_global: usize,
+    ubar: Vec<f64>,
+    /// Per local dof, the start's rate (NaN where none).
+    rate: Option<Vec<f64>>,
+}
+
+/// Encode a stepping and the sizes the part needs as integers.
+fn spacing_code(s: NodeSpacing) -> u64 {
+    match s {
+        NodeSpacing::Equispaced => 0,
+        NodeSpacing::Optimal => 1,
+    }
+}
+
+impl Part {
+    fn encode(&self) -> (Vec<u64>, Vec<f64>) {
+        let m = &self.mesh;
+        let s = &self.stepping;
+        let mut ints = vec![
+            m.dim() as u64,
+            m.order as u64,
+            spacing_code(m.spacing),
+            s.condense as u64,
+            s.increments as u64,
+            s.adaptive as u64,
+            s.max_splits as u64,
+            s.finish as u64,
+            self.rate.is_some() as u64,
+            m.n_nodes() as u64,
+            m.n_vertices as u64,
+            m.n_cells() as u64,
+            self.first_owned as u64,
+            self.n_owned as u64,
+            self.n_global as u64,
+        ];
+        ints.extend(m.cells.iter().map(|&n| n as u64));
+        ints.extend(self.global_node.iter().map(|&n| n as u64));
+        ints.extend(self.owned.iter().map(|&o| o as u64));
+        ints.extend(m.constraint.iter().map(|c| (*c != NodeConstraint::Free) as u64));
+        ints.extend(self.petsc_node.iter().map(|&n| n as u64));
+        ints.extend(self.global_cell.iter().map(|&c| c as u64));
+        let mut floats = vec![self.material.lambda, self.material.mu];
+        floats.extend_from_slice(&m.coords);
+        floats.extend_from_slice(&self.ubar);
+        if let Some(r) = &self.rate {
+            floats.extend_from_slice(r);
+        }
+        (ints, floats)
+    }
+
+    fn decode(ints: &[u64], floats: &[f64]) -> Result<Part> {
+        let bad = || Error::InvalidInput("distributed run: a malformed message from rank 0".into());
+        let head = ints.get(..15).ok_or_else(bad)?;
+        let h = |i: usize| head[i] as usize;
+        let simplex = Simplex::from_dim(h(0)).ok_or_else(bad)?;
+        let (order, n_nodes, n_cells) = (h(1), h(9), h(11));
+        let spacing = if h(2) == 0 { NodeSpacing::Equispaced } else { NodeSpacing::Optimal };
+        let npc = simplex.n_nodes(order);
+        let dim = simplex.dim();
+        let mut at = 15;
+        let mut take = |n: usize| -> Result<&[u64]> {
+            let s = ints.get(at..at + n).ok_or_else(bad)?;
+            at += n;
+            Ok(s)
+        };
+        let cells: Vec<usize> = take(n_cells * npc)?.iter().map(|&v| v as usize).collect();
+        let global_node: Vec<usize> = take(n_nodes)?.iter().map(|&v| v as usize).collect();
+        let owned: Vec<bool> = take(n_nodes)?.iter().map(|&v| v != 0).collect();
+        let constraint = take(n_nodes)?
+            .iter()
+            .map(|&v| if v == 0 { NodeConstraint::Free } else { NodeConstraint::Fixed })
+            .collect();
+        let petsc_node: Vec<usize> = take(n_nodes)?.iter().map(|&v| v as usize).collect();
+        let global_cell: Vec<usize> = take(n_cells)?.iter().map(|&v| v as usize).collect();
+        let nd = n_nodes * dim;
+        let want = 2 + 2 * nd + if h(8) != 0 { nd } else { 0 };
+        if floats.len() != want || cells.iter().any(|&n| n >= n_nodes) {
+            return Err(bad());
+        }
+        let mesh = HighOrderMesh {
+            simplex,
+            order,
+            spacing,
+            coords: floats[2..2 + nd].to_vec(),
+            cells,
+            n_vertices: h(10),
+            constraint,
+        };
+        let stepping = Stepping {
+            increments: h(4),
+            residual: false,
+            newton: None,
+            solver: SolverChoice::Auto,
+            direct_ordering: Default::default(),
+            adaptive: h(5) != 0,
+            max_splits: h(6),
+            condense: h(3) != 0,
+            finish: h(7) != 0,
+            parallel: Parallel::Serial,
+        };
+        Ok(Part {
+            mesh,
+            material: LinearElastic { lambda: floats[0], mu: floats[1] },
+            stepping,
+            global_node,
+            owned,
+            petsc_node,
+            global_cell,
+            first_owned: h(12),
+            n_owned: h(13),
+            n_global: h(14),
+            ubar: floats[2 + nd..2 + 2 * nd].to_vec(),
+            rate: (h(8) != 0).then(|| floats[2 + 2 * nd..].to_vec()),
+        })
+    }
+
+    /// Run the increments on this part, with every other process.
+    fn solve(
+        &self,
+        world: &World,
+        timings: &mut Timings,
+        tick: &mut dyn FnMut(Stage, usize, usize) -> Result<()>,
+    ) -> Result<(HighOrderMesh, IncrementsReport)> {
+        let mut mesh = self.mesh.clone();
+        let dim = mesh.dim();
+        let dofs = if self.stepping.condense { DofMap::condensed(&mesh) } else { DofMap::new(&mesh) };
+        // Global row of each local system row.
+        let mut global = vec![0usize; dofs.n_system];
+        let mut owned_coords = vec![0.0; self.n_owned];
+        for n in 0..mesh.n_nodes() {
+            for c in 0..dim {
+                if let Some(r) = dofs.system_row(n * dim + c) {
+                    let g = self.petsc_node[n] * dim + c;
+                    global[r] = g;
+                    if (self.first_owned..self.first_owned + self.n_owned).contains(&g) {
+                        owned_coords[g - self.first_owned] = mesh.coords[n * dim + c];
+                    }
+                }
+            }
+        }
+        let solver = PetscSolver {
+            world: world.0.duplicate(),
+            global,
+            first_owned: self.first_owned,
+            n_owned: self.n_owned,
+            n_global: self.n_global,
+            block: dim,
+            owned_coords,
+            system: Mutex::new(None),
+        };
+        let collective = MpiCollective { world: world.0.duplicate(), global_cell: self.global_cell.clone() };
+        let stepping = Stepping {
+            solver: SolverChoice::External(ExternalSolver::new(solver)),
+            parallel: Parallel::Part(Arc::new(collective)),
+            ..self.stepping.clone()
+        };
+        let nodes = NodeSet::new(mesh.simplex, mesh.order, mesh.spacing);
+        let kernel = LinearElasticKernel::for_nodes(&nodes, self.material);
+        let rate: Option<Vec<f64>> = self.rate.as_ref().map(|r| {
+            (0..r.len()).filter(|&d| dofs.free_index(d).is_some()).map(|d| r[d]).collect::<Vec<f64>>()
+        });
+        let result = solve_increments_from(&mut mesh, &kernel, &self.ubar, stepping, rate.as_deref(), timings, tick);
+        // Every process ends the same way: the first error (by rank), if any.
+        let local = result.as_ref().err().map(|e| (0, e.to_string()));
+        let agreed = MpiCollective::first_on(&world.0, local);
+        match (result, agreed) {
+            (Ok(report), None) => Ok((mesh, report)),
+            (Err(e), _) => Err(e),
+            (Ok(_), Some((_, message))) => {
+                Err(Error::solver(SolverFailure::External, format!("on another process: {message}")))
+            }
+        }
+    }
+}
+
+/// A rank's owned nodes: global index, then position and rate per dof.
+fn send_back(world: &World, part: &Part, mesh: &HighOrderMesh, first_rate: Option<&[f64]>) {
+    let dim = mesh.dim();
+    let dofs = if part.stepping.condense { DofMap::condensed(mesh) } else { DofMap::new(mesh) };
+    let mut ints = Vec::new();
+    let mut floats = Vec::new();
+    for n in (0..mesh.n_nodes()).filter(|&n| part.owned[n]) {
+        ints.push(part.global_node[n] as u64);
+        floats.extend_from_slice(&mesh.coords[n * dim..(n + 1) * dim]);
+        for c in 0..dim {
+            let r = dofs.free_index(n * dim + c).and_then(|f| first_rate.map(|r| r[f]));
+            floats.push(r.unwrap_or(f64::NAN));
+        }
+    }
+    let root = world.0.process_at_rank(0);
+    root.send(&ints[..]);
+    root.send(&floats[..]);
+}
+
+/// A message pair from rank 0.
+fn receive(world: &World) -> (Vec<u64>, Vec<f64>) {
+    let root = world.0.process_at_rank(0);
+    let (ints, _) = root.receive_vec::<u64>();
+    let (floats, _) = root.receive_vec::<f64>();
+    (ints, floats)
+}
+
+impl ElasticBackend for Lead {
+    fn solve_increments(
+        &self,
+        mesh: &mut HighOrderMesh,
+        material: LinearElastic,
+        ubar: &[f64],
+        stepping: &Stepping,
+        rate: Option<&[f64]>,
+        timings: &mut Timings,
+        tick: &mut dyn FnMut(Stage, usize, usize) -> Result<()>,
+    ) -> Result<IncrementsReport> {
+        let world = &self.world;
+        let size = self.size();
+        let dim = mesh.dim();
+        let gdofs = if stepping.condense { DofMap::condensed(mesh) } else { DofMap::new(mesh) };
+        // Rates per dof of the whole mesh (NaN where prescribed).
+        let rate_per_dof: Option<Vec<f64>> = rate.filter(|r| r.len() == gdofs.n_free).map(|r| {
+            (0..mesh.coords.len()).map(|d| gdofs.free_index(d).map_or(f64::NAN, |f| r[f])).collect()
+        });
+        let parts = split(mesh, &gdofs, size)?;
+        let mut cmd = SOLVE;
+        world.0.process_at_rank(0).broadcast_into(&mut cmd);
+        let mut mine = None;
+        for (r, layout) in parts.into_iter().enumerate() {
+            let part = layout.into_part(mesh, material, stepping, ubar, rate_per_dof.as_deref());
+            if r == 0 {
+                mine = Some(part);
+            } else {
+                let (ints, floats) = part.encode();
+                let to = world.0.process_at_rank(r as i32);
+                to.send(&ints[..]);
+                to.send(&floats[..]);
+            }
+        }
+        let part = mine.expect("rank 0 has a part");
+        // A cancelled run must not leave the other ranks in a collective
+        // call: the progress callback's verdict is kept until the stage ends.
+        let mut cancelled = None;
+        let mut forward = |s: Stage, k: usize, n: usize| -> Result<()> {
+            if cancelled.is_none() {
+                cancelled = tick(s, k, n).err();
+            }
+            Ok(())
+        };
+        let (local_mesh, mut report) = part.solve(world, timings, &mut forward)?;
+        // Gather the positions and first rates of every rank's owned nodes.
+        let mut rate_out = report.first_rate.as_ref().map(|_| vec![f64::NAN; mesh.coords.len()]);
+        let local_dofs = if stepping.condense { DofMap::condensed(&local_mesh) } else { DofMap::new(&local_mesh) };
+        for n in (0..local_mesh.n_nodes()).filter(|&n| part.owned[n]) {
+            let g = part.global_node[n];
+            mesh.coords[g * dim..(g + 1) * dim].copy_from_slice(&local_mesh.coords[n * dim..(n + 1) * dim]);
+            if let (Some(out), Some(r)) = (&mut rate_out, &report.first_rate) {
+                for c in 0..dim {
+                    if let Some(f) = local_dofs.free_index(n * dim + c) {
+                        out[g * dim + c] = r[f];
+                    }
+                }
+            }
+        }
+        for r in 1..size {
+            let from = world.0.process_at_rank(r as i32);
+            let (ints, _) = from.receive_vec::<u64>();
+            let (floats, _) = from.receive_vec::<f64>();
+            for (k, &g) in ints.iter().enumerate() {
+                let g = g as usize;
+                let row = &floats[k * 2 * dim..(k + 1) * 2 * dim];
+                mesh.coords[g * dim..(g + 1) * dim].copy_from_slice(&row[..dim]);
+                if let Some(out) = &mut rate_out {
+                    out[g * dim..(g + 1) * dim].copy_from_slice(&row[dim..]);
+                }
+            }
+        }
+        report.first_rate = match rate_out {
+            Some(per_dof) if report.first_rate.is_some() => {
+                Some((0..per_dof.len()).filter(|&d| gdofs.free_index(d).is_some()).map(|d| per_dof[d]).collect())
+            }
+            _ => None,
+        };
+        // The certified bounds were of rank 0's cells only.
+        report.certified = None;
+        report.n_free = gdofs.n_free;
+        report.n_system = gdofs.n_system;
+        match cancelled {
+            Some(e) => Err(e),
+            None => Ok(report),
+        }
+    }
+}
+
+/// Which cells and nodes each rank takes, and PETSc's numbering.
+struct Layout {
+    cells: Vec<usize>,
+    /// Global nodes of the part: vertices first, each group ascending.
+    nodes: Vec<usize>,
+    owned: Vec<bool>,
+    petsc_node: Vec<usize>,
+    first_owned: usize,
+    n_owned: usize,
+    n_global: usize,
+}
+
+/// Partition `mesh`'s cells over `size` ranks (METIS on the dual graph), own
+/// each node by the lowest rank among its cells', and number the system
+/// nodes for PETSc rank by rank.
+fn split(mesh: &HighOrderMesh, dofs: &DofMap, size: usize) -> Result<Vec<Layout>> {
+    let (dim, npc, nv) = (mesh.dim(), mesh.nodes_per_cell(), mesh.dim() + 1);
+    let nodes = NodeSet::new(mesh.simplex, mesh.order, mesh.spacing);
+    // The local positions of a cell's vertices (the nodes with one λ = 1).
+    let corners: Vec<usize> = (0..npc).filter(|&a| nodes.multi[a].contains(&mesh.order)).collect();
+    let mut vertices = Vec::with_capacity(mesh.n_cells() * nv);
+    for c in 0..mesh.n_cells() {
+        vertices.extend(corners.iter().map(|&a| mesh.cell(c)[a]));
+    }
+    let part = crate::solver::metis::try_part_cells(&vertices, nv, mesh.n_vertices, size)?;
+    let mut owner = vec![usize::MAX; mesh.n_nodes()];
+    for c in 0..mesh.n_cells() {
+        for &n in mesh.cell(c) {
+            owner[n] = owner[n].min(part[c]);
+        }
+    }
+    let is_system = |n: usize| dofs.system_row(n * dim).is_some();
+    let mut petsc_node = vec![usize::MAX; mesh.n_nodes()];
+    let mut first = vec![0usize; size + 1];
+    let mut next = 0;
+    for r in 0..size {
+        first[r] = next * dim;
+        for n in (0..mesh.n_nodes()).filter(|&n| owner[n] == r && is_system(n)) {
+            petsc_node[n] = next;
+            next += 1;
+        }
+    }
+    first[size] = next * dim;
+    let mut layouts = Vec::with_capacity(size);
+    for r in 0..size {
+        let cells: Vec<usize> = (0..mesh.n_cells()).filter(|&c| part[c] == r).collect();
+        let mut used: Vec<usize> = cells.iter().flat_map(|&c| mesh.cell(c).iter().copied()).collect();
+        used.sort_unstable();
+        used.dedup();
+        let (mut nodes, others): (Vec<usize>, Vec<usize>) = used.into_iter().partition(|&n| n < mesh.n_vertices);
+        nodes.extend(others);
+        layouts.push(Layout {
+            owned: nodes.iter().map(|&n| owner[n] == r).collect(),
+            petsc_node: nodes.iter().map(|&n| petsc_node[n]).collect(),
+            cells,
+            nodes,
+            first_owned: first[r],
+            n_owned: first[r + 1] - first[r],
+            n_global: first[size],
+        });
+    }
+    Ok(layouts)
+}
+
+impl Layout {
+    fn into_part(
+        self,
+        mesh: &HighOrderMesh,
+        material: LinearElastic,
+        stepping: &Stepping,
+        ubar: &[f64],
+        rate: Option<&[f64]>,
+    ) -> Part {
+        let dim = mesh.dim();
+        let mut local = vec![usize::MAX; mesh.n_nodes()];
+        for (l, &g) in self.nodes.iter().enumerate() {
+            local[g] = l;
+        }
+        let per_node = |v: &[f64]| -> Vec<f64> {
+            self.nodes.iter().flat_map(|&g| v[g * dim..(g + 1) * dim].iter().copied()).collect()
+        };
+        let sub = HighOrderMesh {
+            simplex: mesh.simplex,
+            order: mesh.order,
+            spacing: mesh.spacing,
+            coords: per_node(&mesh.coords),
+            cells: self.cells.iter().flat_map(|&c| mesh.cell(c).iter().map(|&g| local[g])).collect(),
+            n_vertices: self.nodes.iter().filter(|&&g| g < mesh.n_vertices).count(),
+            constraint: self
+                .nodes
+                .iter()
+                .map(|&g| if mesh.constraint[g] == NodeConstraint::Free { NodeConstraint::Free } else { NodeConstraint::Fixed })
+                .collect(),
+        };
+        Part {
+            mesh: sub,
+            material,
+            stepping: Stepping { parallel: Parallel::Serial, ..stepping.clone() },
+            ubar: per_node(ubar),
+            rate: rate.map(per_node),
+            global_node: self.nodes,
+            owned: self.owned,
+            petsc_node: self.petsc_node,
+            global_cell: self.cells,
+            first_owned: self.first_owned,
+            n_owned: self.n_owned,
+            n_global: self.n_global,
+        }
+    }
+}
+
+/// The agreement of a part's decisions over `MPI_COMM_WORLD`.
+struct MpiCollective {
+    world: SimpleCommunicator,
+    global_cell: Vec<usize>,
+}
+// SAFETY: as `World`.
+unsafe impl Send for MpiCollective {}
+unsafe impl Sync for MpiCollective {}
+
+impl MpiCollective {
+    /// [`Collective::first`] over `world`: the smallest key with its rank
+    /// (all-reduce), then that rank's message (broadcast).
+    fn first_on(world: &SimpleCommunicator, local: Option<(u64, String)>) -> Option<(u64, String)> {
+        let size = world.size() as usize;
+        let key = local.as_ref().map_or(u64::MAX, |(k, _)| *k);
+        let mut keys = vec![0u64; size];
+        world.all_gather_into(&key, &mut keys[..]);
+        let (winner, &best) = keys.iter().enumerate().min_by_key(|&(r, k)| (*k, r))?;
+        if best == u64::MAX {
+            return None;
+        }
+        let mut len = local.as_ref().map_or(0, |(_, m)| m.len() as u64);
+        let root = world.process_at_rank(winner as i32);
+        root.broadcast_into(&mut len);
+        let mut bytes = if world.rank() as usize == winner {
+            local.map(|(_, m)| m.into_bytes()).unwrap_or_default()
+        } else {
+            vec![0u8; len as usize]
+        };
+        root.broadcast_into(&mut bytes[..]);
+        Some((best, String::from_utf8_lossy(&bytes).into_owned()))
+    }
+}
+
+impl Collective for MpiCollective {
+    fn first(&self, local: Option<(u64, String)>) -> Option<(u64, String)> {
+        MpiCollective::first_on(&self.world, local)
+    }
+    fn global_cell(&self, local: usize) -> usize {
+        self.global_cell[local]
+    }
+}
+
+/// The linear solver of a part: its local system summed with the other
+/// processes' in PETSc.
+struct PetscSolver {
+    world: SimpleCommunicator,
+    global: Vec<usize>,
+    first_owned: usize,
+    n_owned: usize,
+    n_global: usize,
+    block: usize,
+    owned_coords: Vec<f64>,
+    system: Mutex<Option<petsc::PetscSystem>>,
+}
+// SAFETY: as `World`.
+unsafe impl Send for PetscSolver {}
+unsafe impl Sync for PetscSolver {}
+
+impl SystemSolver for PetscSolver {
+    fn solve(&self, a: CsrView<'_>, rhs: &[f64], x: &mut [f64]) -> std::result::Result<(), String> {
+        self.solve_counted(a, rhs, x).map(|_| ())
+    }
+
+    fn solve_counted(&self, a: CsrView<'_>, rhs: &[f64], x: &mut [f64]) -> std::result::Result<Option<usize>, String> {
+        let mut guard = self.system.lock().unwrap_or_else(|e| e.into_inner());
+        if guard.is_none() {
+            *guard = Some(petsc::PetscSystem::new(
+                self.world.as_raw(),
+                a.row_ptr,
+                a.col_idx,
+                &self.global,
+                self.first_owned,
+                self.n_owned,
+                self.n_global,
+                self.block,
+                self.owned_coords.clone(),
+            )?);
+        }
+        let system = guard.as_mut().expect("just set");
+        system.values_mut().copy_from_slice(a.values);
+        let solved = system.solve(rhs, x, RTOL)?;
+        for (x, &g) in x.iter_mut().zip(&self.global) {
+            *x = solved.all[g];
+        }
+        Ok(Some(solved.iterations))
+    }
+
+    fn name(&self) -> &'static str {
+        "petsc-cg-gamg"
+    }
+}

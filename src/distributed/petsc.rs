@@ -1,0 +1,376 @@
+//! The PETSc calls the distributed solve makes, bound by hand (PETSc 3.18
+//! as Debian builds it: 32-bit `PetscInt`, real double `PetscScalar`), and
+//! the one object built on them, [`PetscSystem`].
+//!
+//! Each process hands its cells' part of the system (a local matrix and
+//! right-hand side, as the serial assembly makes them on its sub-mesh) with
+//! the map from its local rows to the global ones. PETSc keeps that as an
+//! unassembled `MATIS`, converts it to a distributed `MATAIJ` with block
+//! size d, and solves with CG and smoothed-aggregation AMG (`PCGAMG`) given
+//! the rigid-body modes of the owned nodes as its near-null space. Options
+//! from `PETSC_OPTIONS` or the command line override these (`KSPSetFromOptions`).
+
+use std::ffi::{c_char, c_int, c_void, CStr, CString};
+use std::ptr;
+
+use mpi::ffi::MPI_Comm;
+
+type PetscErrorCode = c_int;
+type PetscInt = i32;
+type PetscScalar = f64;
+type PetscReal = f64;
+type Mat = *mut c_void;
+type Vec = *mut c_void;
+type Ksp = *mut c_void;
+type Pc = *mut c_void;
+type VecScatter = *mut c_void;
+type MatNullSpace = *mut c_void;
+type L2G = *mut c_void;
+
+const PETSC_COPY_VALUES: c_int = 0;
+const INSERT_VALUES: c_int = 1;
+const ADD_VALUES: c_int = 2;
+const MAT_FINAL_ASSEMBLY: c_int = 0;
+const MAT_INITIAL_MATRIX: c_int = 0;
+const MAT_REUSE_MATRIX: c_int = 1;
+const SCATTER_FORWARD: c_int = 0;
+const PETSC_DEFAULT: PetscInt = -2;
+const PETSC_TRUE: c_int = 1;
+
+#[link(name = "petsc_real")]
+extern "C" {
+    fn PetscInitializeNoArguments() -> PetscErrorCode;
+    fn PetscInitialized(isinitialized: *mut c_int) -> PetscErrorCode;
+    fn PetscFinalize() -> PetscErrorCode;
+
+    fn ISLocalToGlobalMappingCreate(
+        comm: MPI_Comm,
+        bs: PetscInt,
+        n: PetscInt,
+        indices: *const PetscInt,
+        mode: c_int,
+        out: *mut L2G,
+    ) -> PetscErrorCode;
+    fn ISLocalToGlobalMappingDestroy(m: *mut L2G) -> PetscErrorCode;
+
+    fn MatCreateIS(
+        comm: MPI_Comm,
+        bs: PetscInt,
+        m: PetscInt,
+        n: PetscInt,
+        big_m: PetscInt,
+        big_n: PetscInt,
+        rmap: L2G,
+        cmap: L2G,
+        a: *mut Mat,
+    ) -> PetscErrorCode;
+    fn MatCreateSeqAIJWithArrays(
+        comm: MPI_Comm,
+        m: PetscInt,
+        n: PetscInt,
+        i: *mut PetscInt,
+        j: *mut PetscInt,
+        a: *mut PetscScalar,
+        mat: *mut Mat,
+    ) -> PetscErrorCode;
+    fn MatISSetLocalMat(a: Mat, local: Mat) -> PetscErrorCode;
+    fn MatAssemblyBegin(a: Mat, t: c_int) -> PetscErrorCode;
+    fn MatAssemblyEnd(a: Mat, t: c_int) -> PetscErrorCode;
+    fn MatConvert(a: Mat, newtype: *const c_char, reuse: c_int, out: *mut Mat) -> PetscErrorCode;
+    fn MatSetNearNullSpace(a: Mat, sp: MatNullSpace) -> PetscErrorCode;
+    fn MatNullSpaceCreateRigidBody(coords: Vec, sp: *mut MatNullSpace) -> PetscErrorCode;
+    fn MatNullSpaceDestroy(sp: *mut MatNullSpace) -> PetscErrorCode;
+    fn MatDestroy(a: *mut Mat) -> PetscErrorCode;
+
+    fn VecCreateMPI(comm: MPI_Comm, n: PetscInt, big_n: PetscInt, v: *mut Vec) -> PetscErrorCode;
+    fn VecSetBlockSize(v: Vec, bs: PetscInt) -> PetscErrorCode;
+    fn VecSet(v: Vec, a: PetscScalar) -> PetscErrorCode;
+    fn VecSetValues(v: Vec, n: PetscInt, ix: *const PetscInt, y: *const PetscScalar, mode: c_int) -> PetscErrorCode;
+    fn VecAssemblyBegin(v: Vec) -> PetscErrorCode;
+    fn VecAssemblyEnd(v: Vec) -> PetscErrorCode;
+    fn VecGetArrayRead(v: Vec, a: *mut *const PetscScalar) -> PetscErrorCode;
+    fn VecRestoreArrayRead(v: Vec, a: *mut *const PetscScalar) -> PetscErrorCode;
+    fn VecGetLocalSize(v: Vec, n: *mut PetscInt) -> PetscErrorCode;
+    fn VecDestroy(v: *mut Vec) -> PetscErrorCode;
+    fn VecScatterCreateToAll(v: Vec, ctx: *mut VecScatter, out: *mut Vec) -> PetscErrorCode;
+    fn VecScatterBegin(ctx: VecScatter, x: Vec, y: Vec, addv: c_int, mode: c_int) -> PetscErrorCode;
+    fn VecScatterEnd(ctx: VecScatter, x: Vec, y: Vec, addv: c_int, mode: c_int) -> PetscErrorCode;
+    fn VecScatterDestroy(ctx: *mut VecScatter) -> PetscErrorCode;
+
+    fn KSPCreate(comm: MPI_Comm, ksp: *mut Ksp) -> PetscErrorCode;
+    fn KSPSetOperators(ksp: Ksp, a: Mat, p: Mat) -> PetscErrorCode;
+    fn KSPSetType(ksp: Ksp, t: *const c_char) -> PetscErrorCode;
+    fn KSPGetPC(ksp: Ksp, pc: *mut Pc) -> PetscErrorCode;
+    fn PCSetType(pc: Pc, t: *const c_char) -> PetscErrorCode;
+    fn KSPSetTolerances(ksp: Ksp, rtol: PetscReal, abstol: PetscReal, dtol: PetscReal, maxits: PetscInt)
+        -> PetscErrorCode;
+    fn KSPSetInitialGuessNonzero(ksp: Ksp, flg: c_int) -> PetscErrorCode;
+    fn KSPSetFromOptions(ksp: Ksp) -> PetscErrorCode;
+    fn KSPSolve(ksp: Ksp, b: Vec, x: Vec) -> PetscErrorCode;
+    fn KSPGetIterationNumber(ksp: Ksp, its: *mut PetscInt) -> PetscErrorCode;
+    fn KSPGetConvergedReason(ksp: Ksp, reason: *mut c_int) -> PetscErrorCode;
+    fn KSPGetConvergedReasonString(ksp: Ksp, s: *mut *const c_char) -> PetscErrorCode;
+    fn KSPDestroy(ksp: *mut Ksp) -> PetscErrorCode;
+}
+
+/// A PETSc call's error code as a message naming the call.
+fn check(code: PetscErrorCode, call: &str) -> Result<(), String> {
+    match code {
+        0 => Ok(()),
+        e => Err(format!("PETSc: {call} returned error {e}")),
+    }
+}
+
+/// Start PETSc on the already initialised MPI (`PETSC_COMM_WORLD` is
+/// `MPI_COMM_WORLD`), unless it runs already.
+pub fn initialize() -> Result<(), String> {
+    let mut done = 0;
+    // SAFETY: plain calls with a valid out-pointer.
+    unsafe {
+        check(PetscInitialized(&mut done), "PetscInitialized")?;
+        if done == 0 {
+            check(PetscInitializeNoArguments(), "PetscInitializeNoArguments")?;
+        }
+    }
+    Ok(())
+}
+
+/// End PETSc (before MPI ends).
+pub fn finalize() {
+    // SAFETY: called once, after every PETSc object was destroyed.
+    unsafe {
+        PetscFinalize();
+    }
+}
+
+fn c_name(s: &str) -> CString {
+    CString::new(s).expect("no NUL in PETSc type names")
+}
+
+/// One process's share of a distributed symmetric system, and the solver.
+///
+/// Built once per sparsity pattern: the local matrix's CSR arrays stay
+/// owned here (PETSc reads them in place), so a new system only copies
+/// values; the distributed matrix and the AMG hierarchy are rebuilt by
+/// PETSc for each solve.
+pub struct PetscSystem {
+    comm: MPI_Comm,
+    /// Local CSR (both triangles, sorted columns) of the local rows.
+    row_ptr: std::vec::Vec<PetscInt>,
+    col_idx: std::vec::Vec<PetscInt>,
+    values: std::vec::Vec<PetscScalar>,
+    /// Global row of each local row.
+    global: std::vec::Vec<PetscInt>,
+    n_owned: usize,
+    n_global: usize,
+    block: usize,
+    /// Coordinates of the owned nodes (block-interleaved), for the rigid-body modes.
+    owned_coords: std::vec::Vec<f64>,
+    /// The global rows this process owns start here.
+    first_owned: usize,
+    l2g: L2G,
+    local: Mat,
+    is: Mat,
+    aij: Mat,
+}
+
+// SAFETY: the PETSc objects are used from the thread that owns the
+// PetscSystem only (the elastic stage runs its solves on one thread).
+unsafe impl Send for PetscSystem {}
+unsafe impl Sync for PetscSystem {}
+
+/// The outcome of one solve.
+pub struct Solved {
+    pub iterations: usize,
+    /// Every global row's value (gathered to every process).
+    pub all: std::vec::Vec<f64>,
+}
+
+impl PetscSystem {
+    /// `row_ptr`/`col_idx`: the local matrix's full CSR pattern; `global`:
+    /// the global row of each local row; this process owns the `n_owned`
+    /// global rows from `first_owned`, of `n_global`; `block` the unknowns
+    /// per node, and `owned_coords` the owned nodes' coordinates in the
+    /// global rows' order.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        comm: MPI_Comm,
+        row_ptr: &[usize],
+        col_idx: &[usize],
+        global: &[usize],
+        first_owned: usize,
+        n_owned: usize,
+        n_global: usize,
+        block: usize,
+        owned_coords: std::vec::Vec<f64>,
+    ) -> Result<PetscSystem, String> {
+        let to_int = |v: usize| PetscInt::try_from(v).map_err(|_| format!("{v} does not fit PETSc's 32-bit integers"));
+        let row_ptr: std::vec::Vec<PetscInt> = row_ptr.iter().map(|&v| to_int(v)).collect::<Result<_, _>>()?;
+        let col_idx: std::vec::Vec<PetscInt> = col_idx.iter().map(|&v| to_int(v)).collect::<Result<_, _>>()?;
+        let global: std::vec::Vec<PetscInt> = global.iter().map(|&v| to_int(v)).collect::<Result<_, _>>()?;
+        to_int(n_global)?;
+        let values = vec![0.0; col_idx.len()];
+        let mut s = PetscSystem {
+            comm,
+            row_ptr,
+            col_idx,
+            values,
+            global,
+            n_owned,
+            n_global,
+            block,
+            owned_coords,
+            first_owned,
+            l2g: ptr::null_mut(),
+            local: ptr::null_mut(),
+            is: ptr::null_mut(),
+            aij: ptr::null_mut(),
+        };
+        let n_local = s.global.len() as PetscInt;
+        // SAFETY: the arrays outlive the objects that read them (both owned by `s`).
+        unsafe {
+            check(
+                ISLocalToGlobalMappingCreate(comm, 1, n_local, s.global.as_ptr(), PETSC_COPY_VALUES, &mut s.l2g),
+                "ISLocalToGlobalMappingCreate",
+            )?;
+            let (m, big) = (n_owned as PetscInt, n_global as PetscInt);
+            check(MatCreateIS(comm, block as PetscInt, m, m, big, big, s.l2g, s.l2g, &mut s.is), "MatCreateIS")?;
+            check(
+                MatCreateSeqAIJWithArrays(
+                    mpi::ffi::RSMPI_COMM_SELF,
+                    n_local,
+                    n_local,
+                    s.row_ptr.as_mut_ptr(),
+                    s.col_idx.as_mut_ptr(),
+                    s.values.as_mut_ptr(),
+                    &mut s.local,
+                ),
+                "MatCreateSeqAIJWithArrays",
+            )?;
+            check(MatISSetLocalMat(s.is, s.local), "MatISSetLocalMat")?;
+        }
+        Ok(s)
+    }
+
+    /// Local CSR values (`values[k]` for the entry `col_idx[k]` of its row),
+    /// to be filled before [`Self::solve`].
+    pub fn values_mut(&mut self) -> &mut [f64] {
+        &mut self.values
+    }
+
+    /// Solve with the local right-hand side `rhs` (local rows; the global
+    /// one is the sum over processes) from the guess `guess` (local rows;
+    /// only owned rows are read), to ‖r‖ ≤ `rtol` ‖b‖.
+    pub fn solve(&mut self, rhs: &[f64], guess: &[f64], rtol: f64) -> Result<Solved, String> {
+        let comm = self.comm;
+        let (m, big) = (self.n_owned as PetscInt, self.n_global as PetscInt);
+        let (mut b, mut x, mut xyz, mut all): (Vec, Vec, Vec, Vec) =
+            (ptr::null_mut(), ptr::null_mut(), ptr::null_mut(), ptr::null_mut());
+        let (mut ksp, mut pc, mut scatter, mut nsp): (Ksp, Pc, VecScatter, MatNullSpace) =
+            (ptr::null_mut(), ptr::null_mut(), ptr::null_mut(), ptr::null_mut());
+        let owned: std::vec::Vec<usize> = (0..self.global.len())
+            .filter(|&l| (self.first_owned..self.first_owned + self.n_owned).contains(&(self.global[l] as usize)))
+            .collect();
+        let owned_rows: std::vec::Vec<PetscInt> = owned.iter().map(|&l| self.global[l]).collect();
+        let owned_guess: std::vec::Vec<f64> = owned.iter().map(|&l| guess[l]).collect();
+        // SAFETY: every object is created here or in `new`, used with
+        // arrays of the lengths PETSc expects, and destroyed below.
+        let result = unsafe {
+            (|| -> Result<Solved, String> {
+                check(MatAssemblyBegin(self.local, MAT_FINAL_ASSEMBLY), "MatAssemblyBegin")?;
+                check(MatAssemblyEnd(self.local, MAT_FINAL_ASSEMBLY), "MatAssemblyEnd")?;
+                check(MatAssemblyBegin(self.is, MAT_FINAL_ASSEMBLY), "MatAssemblyBegin")?;
+                check(MatAssemblyEnd(self.is, MAT_FINAL_ASSEMBLY), "MatAssemblyEnd")?;
+                let reuse = if self.aij.is_null() { MAT_INITIAL_MATRIX } else { MAT_REUSE_MATRIX };
+                check(MatConvert(self.is, c_name("aij").as_ptr(), reuse, &mut self.aij), "MatConvert")?;
+                check(VecCreateMPI(comm, m, big, &mut b), "VecCreateMPI")?;
+                check(VecSetBlockSize(b, self.block as PetscInt), "VecSetBlockSize")?;
+                check(VecSet(b, 0.0), "VecSet")?;
+                check(
+                    VecSetValues(b, rhs.len() as PetscInt, self.global.as_ptr(), rhs.as_ptr(), ADD_VALUES),
+                    "VecSetValues",
+                )?;
+                check(VecAssemblyBegin(b), "VecAssemblyBegin")?;
+                check(VecAssemblyEnd(b), "VecAssemblyEnd")?;
+                check(VecCreateMPI(comm, m, big, &mut x), "VecCreateMPI")?;
+                check(VecSetBlockSize(x, self.block as PetscInt), "VecSetBlockSize")?;
+                check(
+                    VecSetValues(
+                        x,
+                        owned_rows.len() as PetscInt,
+                        owned_rows.as_ptr(),
+                        owned_guess.as_ptr(),
+                        INSERT_VALUES,
+                    ),
+                    "VecSetValues",
+                )?;
+                check(VecAssemblyBegin(x), "VecAssemblyBegin")?;
+                check(VecAssemblyEnd(x), "VecAssemblyEnd")?;
+                // The rigid-body modes from the owned nodes' coordinates.
+                check(VecCreateMPI(comm, m, big, &mut xyz), "VecCreateMPI")?;
+                check(VecSetBlockSize(xyz, self.block as PetscInt), "VecSetBlockSize")?;
+                let rows: std::vec::Vec<PetscInt> =
+                    (self.first_owned..self.first_owned + self.n_owned).map(|r| r as PetscInt).collect();
+                check(
+                    VecSetValues(xyz, m, rows.as_ptr(), self.owned_coords.as_ptr(), INSERT_VALUES),
+                    "VecSetValues",
+                )?;
+                check(VecAssemblyBegin(xyz), "VecAssemblyBegin")?;
+                check(VecAssemblyEnd(xyz), "VecAssemblyEnd")?;
+                check(MatNullSpaceCreateRigidBody(xyz, &mut nsp), "MatNullSpaceCreateRigidBody")?;
+                check(MatSetNearNullSpace(self.aij, nsp), "MatSetNearNullSpace")?;
+
+                check(KSPCreate(comm, &mut ksp), "KSPCreate")?;
+                check(KSPSetOperators(ksp, self.aij, self.aij), "KSPSetOperators")?;
+                check(KSPSetType(ksp, c_name("cg").as_ptr()), "KSPSetType")?;
+                check(KSPGetPC(ksp, &mut pc), "KSPGetPC")?;
+                check(PCSetType(pc, c_name("gamg").as_ptr()), "PCSetType")?;
+                check(KSPSetTolerances(ksp, rtol, 1e-300, PETSC_DEFAULT as f64, 10_000), "KSPSetTolerances")?;
+                check(KSPSetInitialGuessNonzero(ksp, PETSC_TRUE), "KSPSetInitialGuessNonzero")?;
+                check(KSPSetFromOptions(ksp), "KSPSetFromOptions")?;
+                check(KSPSolve(ksp, b, x), "KSPSolve")?;
+                let (mut its, mut reason) = (0 as PetscInt, 0 as c_int);
+                check(KSPGetIterationNumber(ksp, &mut its), "KSPGetIterationNumber")?;
+                check(KSPGetConvergedReason(ksp, &mut reason), "KSPGetConvergedReason")?;
+                if reason <= 0 {
+                    let mut s: *const c_char = ptr::null();
+                    KSPGetConvergedReasonString(ksp, &mut s);
+                    let why = if s.is_null() { format!("{reason}") } else { CStr::from_ptr(s).to_string_lossy().into() };
+                    return Err(format!("PETSc CG with GAMG did not converge in {its} iterations: {why}"));
+                }
+                check(VecScatterCreateToAll(x, &mut scatter, &mut all), "VecScatterCreateToAll")?;
+                check(VecScatterBegin(scatter, x, all, INSERT_VALUES, SCATTER_FORWARD), "VecScatterBegin")?;
+                check(VecScatterEnd(scatter, x, all, INSERT_VALUES, SCATTER_FORWARD), "VecScatterEnd")?;
+                let mut n: PetscInt = 0;
+                check(VecGetLocalSize(all, &mut n), "VecGetLocalSize")?;
+                let mut a: *const f64 = ptr::null();
+                check(VecGetArrayRead(all, &mut a), "VecGetArrayRead")?;
+                let values = std::slice::from_raw_parts(a, n as usize).to_vec();
+                check(VecRestoreArrayRead(all, &mut a), "VecRestoreArrayRead")?;
+                Ok(Solved { iterations: its as usize, all: values })
+            })()
+        };
+        // SAFETY: destroying null handles is a no-op in PETSc.
+        unsafe {
+            KSPDestroy(&mut ksp);
+            MatNullSpaceDestroy(&mut nsp);
+            VecScatterDestroy(&mut scatter);
+            for v in [&mut b, &mut x, &mut xyz, &mut all] {
+                VecDestroy(v);
+            }
+        }
+        result
+    }
+}
+
+impl Drop for PetscSystem {
+    fn drop(&mut self) {
+        // SAFETY: the handles were created by PETSc or are null.
+        unsafe {
+            MatDestroy(&mut self.aij);
+            MatDestroy(&mut self.is);
+            MatDestroy(&mut self.local);
+            ISLocalToGlobalMappingDestroy(&mut self.l2g);
+        }
+    }
+}
