@@ -4,11 +4,12 @@
 # gmsh's C++ API with OpenCASCADE for examples/occt (libgmsh-dev). binutils
 # (g++ pulls it in; named because the CMake build itself runs ld -r, objcopy,
 # ar and readelf on libhocurve.a, and scripts/test_packaging.sh runs nm) and
-# pkg-config for the packaging checks.
+# pkg-config for the packaging checks. OpenMPI, PETSc and libclang (for the
+# `mpi` crate's bindings) for the distributed build, hocurve-mpi.
 set -euo pipefail
 packages=(cmake g++ gfortran pkg-config binutils valgrind
   tetgen libtet1.5-dev libcgal-dev libgmp-dev libmpfr-dev libboost-dev
-  libgmsh-dev)
+  libgmsh-dev openmpi-bin libopenmpi-dev petsc-dev libclang-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")

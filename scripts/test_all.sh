@@ -10,10 +10,12 @@
 #                                 tests on TetGen/CGAL meshes via find_package;
 #                                 ctest, then the same under valgrind and under
 #                                 AddressSanitizer + UBSan + LeakSanitizer)
-#   6. scripts/fuzz.sh           (cargo-fuzz: the .msh reader and the C ABI call
+#   6. the distributed build (`--features mpi`, in target/mpi) and
+#      pytest -q tests/mpi: mpirun -np 1..4 hocurve-mpi against hocurve
+#   7. scripts/fuzz.sh           (cargo-fuzz: the .msh reader and the C ABI call
 #                                 sequence, HOCURVE_FUZZ_SECONDS each, default
 #                                 60; HOCURVE_SKIP_FUZZ=1 skips it)
-# Steps 2-6 all run even if one fails; the exit status is non-zero if
+# Steps 2-7 all run even if one fails; the exit status is non-zero if
 # anything failed. The Python venv is made (or reused) by setup_python.sh.
 set -uo pipefail
 
@@ -68,6 +70,16 @@ step "C, C++ and Fortran tests (scripts/test_c.sh)"
 "$repo/scripts/test_c.sh"
 c_rc=$?
 
+step "distributed build and tests: cargo build --release --features mpi; pytest -q tests/mpi"
+# In a target directory of its own: the default build's library links no MPI.
+if CARGO_TARGET_DIR="$repo/target/mpi" cargo build --release --features mpi --bin hocurve-mpi; then
+    "$venv/bin/python" -m pytest -q -p no:cacheprovider tests/mpi
+    mpi_rc=$?
+else
+    echo "test_all: the distributed build failed" >&2
+    mpi_rc=1
+fi
+
 fuzz_rc=0
 if [ "${HOCURVE_SKIP_FUZZ:-0}" != 1 ]; then
     step "fuzzing (scripts/fuzz.sh ${HOCURVE_FUZZ_SECONDS:-60})"
@@ -80,5 +92,6 @@ echo "cargo test: $([ $cargo_rc -eq 0 ] && echo ok || echo "FAILED (exit $cargo_
 echo "pytest:     $([ $py_rc -eq 0 ] && echo ok || echo "FAILED (exit $py_rc)")"
 echo "Python pkg: $([ $pkg_rc -eq 0 ] && echo ok || echo "FAILED (exit $pkg_rc)")"
 echo "C tests:    $([ $c_rc -eq 0 ] && echo ok || echo "FAILED (exit $c_rc)")"
+echo "MPI:        $([ $mpi_rc -eq 0 ] && echo ok || echo "FAILED (exit $mpi_rc)")"
 echo "fuzzing:    $([ "${HOCURVE_SKIP_FUZZ:-0}" = 1 ] && echo skipped || { [ $fuzz_rc -eq 0 ] && echo ok || echo "FAILED (exit $fuzz_rc)"; })"
-[ "$cargo_rc" -eq 0 ] && [ "$py_rc" -eq 0 ] && [ "$pkg_rc" -eq 0 ] && [ "$c_rc" -eq 0 ] && [ "$fuzz_rc" -eq 0 ]
+[ "$cargo_rc" -eq 0 ] && [ "$py_rc" -eq 0 ] && [ "$pkg_rc" -eq 0 ] && [ "$c_rc" -eq 0 ] && [ "$mpi_rc" -eq 0 ] && [ "$fuzz_rc" -eq 0 ]

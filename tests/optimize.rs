@@ -309,3 +309,68 @@ fn a_coarse_gmsh_torus_cavity_is_untangled_where_the_elastic_stage_stops_short()
     assert_eq!(t.report.quality.n_invalid, 0);
     assert_eq!(t.mesh.coords, c.mesh.coords);
 }
+
+/// The elastic stage as one process's part of a distributed run
+/// (`Parallel::Part`), with a collective of one process: every decision
+/// goes through the agreement the MPI runs take, and the run must be
+/// bitwise the serial one.
+mod one_part {
+    use std::sync::Arc;
+
+    use hocurve::assembly::LinearElasticKernel;
+    use hocurve::curve::{
+        solve_increments_from, Collective, ElasticBackend, IncrementsReport, Parallel, Stage, Stepping, Timings,
+    };
+    use hocurve::material::LinearElastic;
+    use hocurve::mesh::HighOrderMesh;
+    use hocurve::reference::NodeSet;
+
+    struct Alone;
+    impl Collective for Alone {
+        fn first(&self, local: Option<(u64, String)>) -> Option<(u64, String)> {
+            local
+        }
+        fn global_cell(&self, local: usize) -> usize {
+            local
+        }
+    }
+
+    pub struct OnePart;
+    impl ElasticBackend for OnePart {
+        fn solve_increments(
+            &self,
+            mesh: &mut HighOrderMesh,
+            material: LinearElastic,
+            ubar: &[f64],
+            stepping: &Stepping,
+            rate: Option<&[f64]>,
+            timings: &mut Timings,
+            tick: &mut dyn FnMut(Stage, usize, usize) -> hocurve::Result<()>,
+        ) -> hocurve::Result<IncrementsReport> {
+            let kernel =
+                LinearElasticKernel::for_nodes(&NodeSet::new(mesh.simplex, mesh.order, mesh.spacing), material);
+            let part = Stepping { parallel: Parallel::Part(Arc::new(Alone)), ..stepping.clone() };
+            solve_increments_from(mesh, &kernel, ubar, part, rate, timings, tick)
+        }
+    }
+}
+
+#[test]
+fn the_elastic_stage_as_one_part_of_a_distributed_run_is_the_serial_one() {
+    // p = 3 on the coarse cavity of radius 0.6: adaptive stepping steps
+    // back, then stops short, and the optimisation finishes the mesh.
+    let (mesh, projector) = coarse_sphere_06();
+    let serial = run(&mesh, &projector, &p3(true)).unwrap();
+    let mut opts = p3(true);
+    opts.parallel = hocurve::curve::Parallel::Lead(std::sync::Arc::new(one_part::OnePart));
+    let part = run(&mesh, &projector, &opts).unwrap();
+    assert!(!serial.report.step_backs.is_empty() && serial.report.elastic_stop.is_some());
+    assert_eq!(serial.report.step_backs, part.report.step_backs);
+    assert_eq!(serial.report.load_fractions, part.report.load_fractions);
+    assert_eq!(serial.mesh.coords, part.mesh.coords);
+    // The other formulations are refused, not run serially.
+    opts.formulation = Formulation::Cil;
+    opts.material = hocurve::material::MaterialModel::NeoHookean;
+    let refused = run(&mesh, &projector, &opts).unwrap_err();
+    assert!(refused.to_string().contains("distributed run"), "{refused}");
+}

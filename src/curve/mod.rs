@@ -30,11 +30,11 @@ pub use parallel::{Collective, ElasticBackend, Parallel};
 pub use prepare::Prepared;
 pub use stepping::{ElasticStop, StepBack, StepBackReason, DEFAULT_MAX_SPLITS, MAX_SPLITS};
 // The elastic stage on its own, for the crate's tests.
-pub use stepping::{IncrementsReport, Stepping};
 #[cfg(feature = "internals")]
 pub use stepping::{add_rate, solve_increments, solve_increments_from, Predictor};
 #[cfg(not(feature = "internals"))]
 pub(crate) use stepping::{solve_increments, solve_increments_from};
+pub use stepping::{IncrementsReport, Stepping};
 
 /// The solid-mechanics formulation (paper Table 1).
 #[non_exhaustive]

@@ -180,10 +180,8 @@ impl Part {
         let cells: Vec<usize> = take(n_cells * npc)?.iter().map(|&v| v as usize).collect();
         let global_node: Vec<usize> = take(n_nodes)?.iter().map(|&v| v as usize).collect();
         let owned: Vec<bool> = take(n_nodes)?.iter().map(|&v| v != 0).collect();
-        let constraint = take(n_nodes)?
-            .iter()
-            .map(|&v| if v == 0 { NodeConstraint::Free } else { NodeConstraint::Fixed })
-            .collect();
+        let constraint =
+            take(n_nodes)?.iter().map(|&v| if v == 0 { NodeConstraint::Free } else { NodeConstraint::Fixed }).collect();
         let petsc_node: Vec<usize> = take(n_nodes)?.iter().map(|&v| v as usize).collect();
         let global_cell: Vec<usize> = take(n_cells)?.iter().map(|&v| v as usize).collect();
         let nd = n_nodes * dim;
@@ -270,9 +268,10 @@ impl Part {
         };
         let nodes = NodeSet::new(mesh.simplex, mesh.order, mesh.spacing);
         let kernel = LinearElasticKernel::for_nodes(&nodes, self.material);
-        let rate: Option<Vec<f64>> = self.rate.as_ref().map(|r| {
-            (0..r.len()).filter(|&d| dofs.free_index(d).is_some()).map(|d| r[d]).collect::<Vec<f64>>()
-        });
+        let rate: Option<Vec<f64>> = self
+            .rate
+            .as_ref()
+            .map(|r| (0..r.len()).filter(|&d| dofs.free_index(d).is_some()).map(|d| r[d]).collect::<Vec<f64>>());
         let result = solve_increments_from(&mut mesh, &kernel, &self.ubar, stepping, rate.as_deref(), timings, tick);
         // Every process ends the same way: the first error (by rank), if any.
         let local = result.as_ref().err().map(|e| (0, e.to_string()));
@@ -330,9 +329,9 @@ impl ElasticBackend for Lead {
         let dim = mesh.dim();
         let gdofs = if stepping.condense { DofMap::condensed(mesh) } else { DofMap::new(mesh) };
         // Rates per dof of the whole mesh (NaN where prescribed).
-        let rate_per_dof: Option<Vec<f64>> = rate.filter(|r| r.len() == gdofs.n_free).map(|r| {
-            (0..mesh.coords.len()).map(|d| gdofs.free_index(d).map_or(f64::NAN, |f| r[f])).collect()
-        });
+        let rate_per_dof: Option<Vec<f64>> = rate
+            .filter(|r| r.len() == gdofs.n_free)
+            .map(|r| (0..mesh.coords.len()).map(|d| gdofs.free_index(d).map_or(f64::NAN, |f| r[f])).collect());
         let parts = split(mesh, &gdofs, size)?;
         let mut cmd = SOLVE;
         world.0.process_at_rank(0).broadcast_into(&mut cmd);
@@ -494,7 +493,13 @@ impl Layout {
             constraint: self
                 .nodes
                 .iter()
-                .map(|&g| if mesh.constraint[g] == NodeConstraint::Free { NodeConstraint::Free } else { NodeConstraint::Fixed })
+                .map(|&g| {
+                    if mesh.constraint[g] == NodeConstraint::Free {
+                        NodeConstraint::Free
+                    } else {
+                        NodeConstraint::Fixed
+                    }
+                })
                 .collect(),
         };
         Part {

@@ -102,8 +102,13 @@ extern "C" {
     fn KSPSetType(ksp: Ksp, t: *const c_char) -> PetscErrorCode;
     fn KSPGetPC(ksp: Ksp, pc: *mut Pc) -> PetscErrorCode;
     fn PCSetType(pc: Pc, t: *const c_char) -> PetscErrorCode;
-    fn KSPSetTolerances(ksp: Ksp, rtol: PetscReal, abstol: PetscReal, dtol: PetscReal, maxits: PetscInt)
-        -> PetscErrorCode;
+    fn KSPSetTolerances(
+        ksp: Ksp,
+        rtol: PetscReal,
+        abstol: PetscReal,
+        dtol: PetscReal,
+        maxits: PetscInt,
+    ) -> PetscErrorCode;
     fn KSPSetInitialGuessNonzero(ksp: Ksp, flg: c_int) -> PetscErrorCode;
     fn KSPSetFromOptions(ksp: Ksp) -> PetscErrorCode;
     fn KSPSolve(ksp: Ksp, b: Vec, x: Vec) -> PetscErrorCode;
@@ -311,10 +316,7 @@ impl PetscSystem {
                 check(VecSetBlockSize(xyz, self.block as PetscInt), "VecSetBlockSize")?;
                 let rows: std::vec::Vec<PetscInt> =
                     (self.first_owned..self.first_owned + self.n_owned).map(|r| r as PetscInt).collect();
-                check(
-                    VecSetValues(xyz, m, rows.as_ptr(), self.owned_coords.as_ptr(), INSERT_VALUES),
-                    "VecSetValues",
-                )?;
+                check(VecSetValues(xyz, m, rows.as_ptr(), self.owned_coords.as_ptr(), INSERT_VALUES), "VecSetValues")?;
                 check(VecAssemblyBegin(xyz), "VecAssemblyBegin")?;
                 check(VecAssemblyEnd(xyz), "VecAssemblyEnd")?;
                 check(MatNullSpaceCreateRigidBody(xyz, &mut nsp), "MatNullSpaceCreateRigidBody")?;
@@ -335,7 +337,8 @@ impl PetscSystem {
                 if reason <= 0 {
                     let mut s: *const c_char = ptr::null();
                     KSPGetConvergedReasonString(ksp, &mut s);
-                    let why = if s.is_null() { format!("{reason}") } else { CStr::from_ptr(s).to_string_lossy().into() };
+                    let why =
+                        if s.is_null() { format!("{reason}") } else { CStr::from_ptr(s).to_string_lossy().into() };
                     return Err(format!("PETSc CG with GAMG did not converge in {its} iterations: {why}"));
                 }
                 check(VecScatterCreateToAll(x, &mut scatter, &mut all), "VecScatterCreateToAll")?;

@@ -62,7 +62,12 @@ extern "C" {
 /// graph whose edges are the shared facets (`vertices_per_cell − 1`
 /// common vertices). One part: all zeros, without METIS.
 #[cfg_attr(not(feature = "mpi"), allow(dead_code))]
-pub fn try_part_cells(cells: &[usize], vertices_per_cell: usize, n_vertices: usize, parts: usize) -> Result<Vec<usize>> {
+pub fn try_part_cells(
+    cells: &[usize],
+    vertices_per_cell: usize,
+    n_vertices: usize,
+    parts: usize,
+) -> Result<Vec<usize>> {
     let n_cells = cells.len() / vertices_per_cell.max(1);
     if parts <= 1 || n_cells <= 1 {
         return Ok(vec![0; n_cells]);
@@ -145,4 +150,54 @@ pub fn try_node_nd(xadj: &mut [Idx], adjncy: &mut [Idx]) -> Result<Vec<Idx>> {
         return Err(Error::solver(SolverFailure::Setup, format!("METIS_NodeND failed (status {status})")));
     }
     Ok(perm)
+}
+
+#[cfg(test)]
+mod partition_tests {
+    use super::try_part_cells;
+
+    /// The two triangles of each square of an m × m grid.
+    fn grid(m: usize) -> Vec<usize> {
+        let v = |i: usize, j: usize| i * (m + 1) + j;
+        let mut cells = Vec::new();
+        for i in 0..m {
+            for j in 0..m {
+                cells.extend([v(i, j), v(i + 1, j), v(i + 1, j + 1)]);
+                cells.extend([v(i, j), v(i + 1, j + 1), v(i, j + 1)]);
+            }
+        }
+        cells
+    }
+
+    #[test]
+    fn parts_are_balanced_and_their_boundaries_short() {
+        let m = 20;
+        let cells = grid(m);
+        let n_cells = cells.len() / 3;
+        assert_eq!(try_part_cells(&cells, 3, (m + 1) * (m + 1), 1).unwrap(), vec![0; n_cells]);
+        for parts in [2, 3, 4] {
+            let part = try_part_cells(&cells, 3, (m + 1) * (m + 1), parts).unwrap();
+            assert_eq!(part.len(), n_cells);
+            let mut sizes = vec![0usize; parts];
+            part.iter().for_each(|&p| sizes[p] += 1);
+            let ideal = n_cells as f64 / parts as f64;
+            assert!(sizes.iter().all(|&s| (s as f64 - ideal).abs() <= 0.05 * ideal), "{parts} parts: {sizes:?}");
+            // Facets between parts: each square's diagonal and its right and
+            // top edges, compared; a strip partition cuts about m per cut.
+            let mut cut = 0;
+            for i in 0..m {
+                for j in 0..m {
+                    let (a, b) = (part[2 * (i * m + j)], part[2 * (i * m + j) + 1]);
+                    cut += (a != b) as usize;
+                    if i + 1 < m {
+                        cut += (a != part[2 * ((i + 1) * m + j) + 1]) as usize;
+                    }
+                    if j + 1 < m {
+                        cut += (b != part[2 * (i * m + j + 1)]) as usize;
+                    }
+                }
+            }
+            assert!(cut <= 3 * m * (parts - 1), "{parts} parts cut {cut} facets");
+        }
+    }
 }
