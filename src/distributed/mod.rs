@@ -38,6 +38,9 @@ use crate::{Error, Result, SolverFailure};
 /// PCG's relative tolerance, as the built-in iterative solver's.
 const RTOL: f64 = 1e-5;
 
+/// Integers before the arrays of a part's message ([`Part::encode`]).
+const HEAD: usize = 17;
+
 /// Commands rank 0 broadcasts to the others.
 const STOP: u8 = 0;
 const SOLVE: u8 = 1;
@@ -106,8 +109,13 @@ struct Part {
     /// process owns it (returns its position).
     global_node: Vec<usize>,
     owned: Vec<bool>,
-    /// Per local node: its row block in PETSc's numbering, if a system node.
+    /// Per local node: its row block in PETSc's numbering, if a system
+    /// node, and its row block on the P1 level, if a free vertex.
     petsc_node: Vec<usize>,
+    petsc_vertex: Vec<usize>,
+    /// This process's row blocks on the P1 level, and their number in all.
+    n_coarse_owned: usize,
+    n_coarse_global: usize,
     global_cell: Vec<usize>,
     /// This process's rows of the distributed system, and their number in all.
     first_owned: usize,
@@ -127,6 +135,7 @@ fn spacing_code(s: NodeSpacing) -> u64 {
 }
 
 impl Part {
+    /// The message that carries this part to its process: integers, then floats.
     fn encode(&self) -> (Vec<u64>, Vec<f64>) {
         let m = &self.mesh;
         let s = &self.stepping;
@@ -146,12 +155,15 @@ impl Part {
             self.first_owned as u64,
             self.n_owned as u64,
             self.n_global as u64,
+            self.n_coarse_owned as u64,
+            self.n_coarse_global as u64,
         ];
         ints.extend(m.cells.iter().map(|&n| n as u64));
         ints.extend(self.global_node.iter().map(|&n| n as u64));
         ints.extend(self.owned.iter().map(|&o| o as u64));
         ints.extend(m.constraint.iter().map(|c| (*c != NodeConstraint::Free) as u64));
         ints.extend(self.petsc_node.iter().map(|&n| n as u64));
+        ints.extend(self.petsc_vertex.iter().map(|&n| n as u64));
         ints.extend(self.global_cell.iter().map(|&c| c as u64));
         let mut floats = vec![self.material.lambda, self.material.mu];
         floats.extend_from_slice(&m.coords);
@@ -164,14 +176,14 @@ impl Part {
 
     fn decode(ints: &[u64], floats: &[f64]) -> Result<Part> {
         let bad = || Error::InvalidInput("distributed run: a malformed message from rank 0".into());
-        let head = ints.get(..15).ok_or_else(bad)?;
+        let head = ints.get(..HEAD).ok_or_else(bad)?;
         let h = |i: usize| head[i] as usize;
         let simplex = Simplex::from_dim(h(0)).ok_or_else(bad)?;
         let (order, n_nodes, n_cells) = (h(1), h(9), h(11));
         let spacing = if h(2) == 0 { NodeSpacing::Equispaced } else { NodeSpacing::Optimal };
         let npc = simplex.n_nodes(order);
         let dim = simplex.dim();
-        let mut at = 15;
+        let mut at = HEAD;
         let mut take = |n: usize| -> Result<&[u64]> {
             let s = ints.get(at..at + n).ok_or_else(bad)?;
             at += n;
@@ -183,6 +195,7 @@ impl Part {
         let constraint =
             take(n_nodes)?.iter().map(|&v| if v == 0 { NodeConstraint::Free } else { NodeConstraint::Fixed }).collect();
         let petsc_node: Vec<usize> = take(n_nodes)?.iter().map(|&v| v as usize).collect();
+        let petsc_vertex: Vec<usize> = take(n_nodes)?.iter().map(|&v| v as usize).collect();
         let global_cell: Vec<usize> = take(n_cells)?.iter().map(|&v| v as usize).collect();
         let nd = n_nodes * dim;
         let want = 2 + 2 * nd + if h(8) != 0 { nd } else { 0 };
@@ -217,6 +230,9 @@ impl Part {
             global_node,
             owned,
             petsc_node,
+            petsc_vertex,
+            n_coarse_owned: h(15),
+            n_coarse_global: h(16),
             global_cell,
             first_owned: h(12),
             n_owned: h(13),
@@ -258,6 +274,7 @@ impl Part {
             n_global: self.n_global,
             block: dim,
             owned_coords,
+            coarse: Mutex::new(Some(self.coarse_level(&mesh, &dofs))),
             system: Mutex::new(None),
         };
         let collective = MpiCollective { world: world.0.duplicate(), global_cell: self.global_cell.clone() };
@@ -284,6 +301,79 @@ impl Part {
             }
         }
     }
+}
+
+impl Part {
+    /// The P1 level of this part: the rows of the prolongation for the
+    /// owned system nodes (the P1 interpolant at each node: its barycentric
+    /// coordinates in a cell holding it, on the cell's free vertices), and
+    /// the owned free vertices' coordinates.
+    fn coarse_level(&self, mesh: &HighOrderMesh, dofs: &DofMap) -> petsc::Coarse {
+        let (dim, order) = (mesh.dim(), mesh.order);
+        let nodes = NodeSet::new(mesh.simplex, order, mesh.spacing);
+        let corner: Vec<usize> =
+            (0..=dim).map(|k| (0..nodes.len()).find(|&a| nodes.multi[a][k] == order).expect("a corner")).collect();
+        let bary: Vec<Vec<f64>> = (0..nodes.len()).map(|a| barycentric(&nodes.coords, &corner, a, dim)).collect();
+        let mut done = vec![false; mesh.n_nodes()];
+        let mut entries = Vec::new();
+        for c in 0..mesh.n_cells() {
+            let cell = mesh.cell(c);
+            for (a, &n) in cell.iter().enumerate() {
+                if done[n] || !self.owned[n] || dofs.system_row(n * dim).is_none() {
+                    continue;
+                }
+                done[n] = true;
+                for (k, &l) in bary[a].iter().enumerate() {
+                    let v = cell[corner[k]];
+                    if l.abs() > 1e-14 && self.petsc_vertex[v] != usize::MAX {
+                        for d in 0..dim {
+                            entries.push((self.petsc_node[n] * dim + d, self.petsc_vertex[v] * dim + d, l));
+                        }
+                    }
+                }
+            }
+        }
+        let mut owned: Vec<usize> =
+            (0..mesh.n_nodes()).filter(|&n| self.owned[n] && self.petsc_vertex[n] != usize::MAX).collect();
+        owned.sort_by_key(|&n| self.petsc_vertex[n]);
+        let owned_coords = owned.iter().flat_map(|&n| mesh.coords[n * dim..(n + 1) * dim].iter().copied()).collect();
+        petsc::Coarse {
+            entries,
+            n_owned: self.n_coarse_owned * dim,
+            n_global: self.n_coarse_global * dim,
+            owned_coords,
+        }
+    }
+}
+
+/// The barycentric coordinates of reference node `a` in the simplex of the
+/// reference nodes `corner` (d + 1 of them), by Cramer's rule.
+fn barycentric(coords: &[[f64; 3]], corner: &[usize], a: usize, dim: usize) -> Vec<f64> {
+    let x0 = coords[corner[0]];
+    let col = |k: usize| -> [f64; 3] { std::array::from_fn(|i| coords[corner[k]][i] - x0[i]) };
+    let rhs: [f64; 3] = std::array::from_fn(|i| coords[a][i] - x0[i]);
+    let det = |m: [[f64; 3]; 3]| -> f64 {
+        if dim == 2 {
+            m[0][0] * m[1][1] - m[0][1] * m[1][0]
+        } else {
+            m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+                + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+        }
+    };
+    // Rows are coordinates, columns the edge vectors X_k - X_0.
+    let matrix = |replace: Option<usize>| -> [[f64; 3]; 3] {
+        std::array::from_fn(|i| {
+            std::array::from_fn(|j| match j {
+                _ if j >= dim => 0.0,
+                _ if Some(j) == replace => rhs[i],
+                _ => col(j + 1)[i],
+            })
+        })
+    };
+    let full = det(matrix(None));
+    let mut l: Vec<f64> = (0..dim).map(|j| det(matrix(Some(j))) / full).collect();
+    l.insert(0, 1.0 - l.iter().sum::<f64>());
+    l
 }
 
 /// A rank's owned nodes: global index, then position and rate per dof.
@@ -409,9 +499,12 @@ struct Layout {
     nodes: Vec<usize>,
     owned: Vec<bool>,
     petsc_node: Vec<usize>,
+    petsc_vertex: Vec<usize>,
     first_owned: usize,
     n_owned: usize,
     n_global: usize,
+    n_coarse_owned: usize,
+    n_coarse_global: usize,
 }
 
 /// Partition `mesh`'s cells over `size` ranks (METIS on the dual graph), own
@@ -434,17 +527,23 @@ fn split(mesh: &HighOrderMesh, dofs: &DofMap, size: usize) -> Result<Vec<Layout>
         }
     }
     let is_system = |n: usize| dofs.system_row(n * dim).is_some();
-    let mut petsc_node = vec![usize::MAX; mesh.n_nodes()];
-    let mut first = vec![0usize; size + 1];
-    let mut next = 0;
-    for r in 0..size {
-        first[r] = next * dim;
-        for n in (0..mesh.n_nodes()).filter(|&n| owner[n] == r && is_system(n)) {
-            petsc_node[n] = next;
-            next += 1;
+    // Row blocks rank by rank: the system nodes, and the free vertices (the P1 level).
+    let number = |keep: &dyn Fn(usize) -> bool| {
+        let mut index = vec![usize::MAX; mesh.n_nodes()];
+        let mut first = vec![0usize; size + 1];
+        let mut next = 0;
+        for r in 0..size {
+            first[r] = next;
+            for n in (0..mesh.n_nodes()).filter(|&n| owner[n] == r && keep(n)) {
+                index[n] = next;
+                next += 1;
+            }
         }
-    }
-    first[size] = next * dim;
+        first[size] = next;
+        (index, first)
+    };
+    let (petsc_node, first) = number(&is_system);
+    let (petsc_vertex, first_vertex) = number(&|n| n < mesh.n_vertices && is_system(n));
     let mut layouts = Vec::with_capacity(size);
     for r in 0..size {
         let cells: Vec<usize> = (0..mesh.n_cells()).filter(|&c| part[c] == r).collect();
@@ -456,11 +555,14 @@ fn split(mesh: &HighOrderMesh, dofs: &DofMap, size: usize) -> Result<Vec<Layout>
         layouts.push(Layout {
             owned: nodes.iter().map(|&n| owner[n] == r).collect(),
             petsc_node: nodes.iter().map(|&n| petsc_node[n]).collect(),
+            petsc_vertex: nodes.iter().map(|&n| petsc_vertex[n]).collect(),
             cells,
             nodes,
-            first_owned: first[r],
-            n_owned: first[r + 1] - first[r],
-            n_global: first[size],
+            first_owned: first[r] * dim,
+            n_owned: (first[r + 1] - first[r]) * dim,
+            n_global: first[size] * dim,
+            n_coarse_owned: first_vertex[r + 1] - first_vertex[r],
+            n_coarse_global: first_vertex[size],
         });
     }
     Ok(layouts)
@@ -511,6 +613,9 @@ impl Layout {
             global_node: self.nodes,
             owned: self.owned,
             petsc_node: self.petsc_node,
+            petsc_vertex: self.petsc_vertex,
+            n_coarse_owned: self.n_coarse_owned,
+            n_coarse_global: self.n_coarse_global,
             global_cell: self.cells,
             first_owned: self.first_owned,
             n_owned: self.n_owned,
@@ -572,6 +677,8 @@ struct PetscSolver {
     n_global: usize,
     block: usize,
     owned_coords: Vec<f64>,
+    /// The P1 level, until the system is built.
+    coarse: Mutex<Option<petsc::Coarse>>,
     system: Mutex<Option<petsc::PetscSystem>>,
 }
 // SAFETY: as `World`.
@@ -596,6 +703,7 @@ impl SystemSolver for PetscSolver {
                 self.n_global,
                 self.block,
                 self.owned_coords.clone(),
+                self.coarse.lock().unwrap_or_else(|e| e.into_inner()).take(),
             )?);
         }
         let system = guard.as_mut().expect("just set");

@@ -36,6 +36,7 @@ const MAT_REUSE_MATRIX: c_int = 1;
 const SCATTER_FORWARD: c_int = 0;
 const PETSC_DEFAULT: PetscInt = -2;
 const PETSC_TRUE: c_int = 1;
+const PC_MG_GALERKIN_NONE: c_int = 3;
 
 #[link(name = "petsc_real")]
 extern "C" {
@@ -81,6 +82,35 @@ extern "C" {
     fn MatNullSpaceCreateRigidBody(coords: Vec, sp: *mut MatNullSpace) -> PetscErrorCode;
     fn MatNullSpaceDestroy(sp: *mut MatNullSpace) -> PetscErrorCode;
     fn MatDestroy(a: *mut Mat) -> PetscErrorCode;
+    #[allow(clippy::too_many_arguments)]
+    fn MatCreateAIJ(
+        comm: MPI_Comm,
+        m: PetscInt,
+        n: PetscInt,
+        big_m: PetscInt,
+        big_n: PetscInt,
+        d_nz: PetscInt,
+        d_nnz: *const PetscInt,
+        o_nz: PetscInt,
+        o_nnz: *const PetscInt,
+        a: *mut Mat,
+    ) -> PetscErrorCode;
+    fn MatSetBlockSizes(a: Mat, rbs: PetscInt, cbs: PetscInt) -> PetscErrorCode;
+    fn MatSetValues(
+        a: Mat,
+        m: PetscInt,
+        idxm: *const PetscInt,
+        n: PetscInt,
+        idxn: *const PetscInt,
+        v: *const PetscScalar,
+        mode: c_int,
+    ) -> PetscErrorCode;
+    fn MatPtAP(a: Mat, p: Mat, reuse: c_int, fill: PetscReal, c: *mut Mat) -> PetscErrorCode;
+    fn PCMGSetLevels(pc: Pc, levels: PetscInt, comms: *mut MPI_Comm) -> PetscErrorCode;
+    fn PCMGSetGalerkin(pc: Pc, t: c_int) -> PetscErrorCode;
+    fn PCMGSetInterpolation(pc: Pc, l: PetscInt, p: Mat) -> PetscErrorCode;
+    fn PCMGGetCoarseSolve(pc: Pc, ksp: *mut Ksp) -> PetscErrorCode;
+    fn PCMGGetSmoother(pc: Pc, l: PetscInt, ksp: *mut Ksp) -> PetscErrorCode;
 
     fn VecCreateMPI(comm: MPI_Comm, n: PetscInt, big_n: PetscInt, v: *mut Vec) -> PetscErrorCode;
     fn VecSetBlockSize(v: Vec, bs: PetscInt) -> PetscErrorCode;
@@ -91,6 +121,7 @@ extern "C" {
     fn VecGetArrayRead(v: Vec, a: *mut *const PetscScalar) -> PetscErrorCode;
     fn VecRestoreArrayRead(v: Vec, a: *mut *const PetscScalar) -> PetscErrorCode;
     fn VecGetLocalSize(v: Vec, n: *mut PetscInt) -> PetscErrorCode;
+    fn VecGetOwnershipRange(v: Vec, lo: *mut PetscInt, hi: *mut PetscInt) -> PetscErrorCode;
     fn VecDestroy(v: *mut Vec) -> PetscErrorCode;
     fn VecScatterCreateToAll(v: Vec, ctx: *mut VecScatter, out: *mut Vec) -> PetscErrorCode;
     fn VecScatterBegin(ctx: VecScatter, x: Vec, y: Vec, addv: c_int, mode: c_int) -> PetscErrorCode;
@@ -177,6 +208,29 @@ pub struct PetscSystem {
     local: Mat,
     is: Mat,
     aij: Mat,
+    /// The P1 level of a two-level preconditioner, if there is one.
+    coarse: Option<CoarseLevel>,
+}
+
+/// The P1 level: the prolongation from it, its Galerkin operator, and its
+/// owned nodes' coordinates (for the rigid-body modes).
+struct CoarseLevel {
+    p: Mat,
+    ac: Mat,
+    owned_coords: std::vec::Vec<f64>,
+    n_owned: usize,
+    n_global: usize,
+}
+
+/// The P1 space of the vertices, the coarse level of the preconditioner:
+/// the entries of the prolongation P (fine global row, coarse global
+/// column, value) in this process's owned fine rows, and its coarse rows.
+pub struct Coarse {
+    pub entries: std::vec::Vec<(usize, usize, f64)>,
+    pub n_owned: usize,
+    pub n_global: usize,
+    /// Coordinates of the owned coarse nodes, in their rows' order.
+    pub owned_coords: std::vec::Vec<f64>,
 }
 
 // SAFETY: the PETSc objects are used from the thread that owns the
@@ -208,6 +262,7 @@ impl PetscSystem {
         n_global: usize,
         block: usize,
         owned_coords: std::vec::Vec<f64>,
+        coarse: Option<Coarse>,
     ) -> Result<PetscSystem, String> {
         let to_int = |v: usize| PetscInt::try_from(v).map_err(|_| format!("{v} does not fit PETSc's 32-bit integers"));
         let row_ptr: std::vec::Vec<PetscInt> = row_ptr.iter().map(|&v| to_int(v)).collect::<Result<_, _>>()?;
@@ -230,6 +285,7 @@ impl PetscSystem {
             local: ptr::null_mut(),
             is: ptr::null_mut(),
             aij: ptr::null_mut(),
+            coarse: None,
         };
         let n_local = s.global.len() as PetscInt;
         // SAFETY: the arrays outlive the objects that read them (both owned by `s`).
@@ -254,7 +310,49 @@ impl PetscSystem {
             )?;
             check(MatISSetLocalMat(s.is, s.local), "MatISSetLocalMat")?;
         }
+        if let Some(c) = coarse.filter(|c| c.n_global > 0) {
+            s.coarse = Some(s.prolongation(c)?);
+        }
         Ok(s)
+    }
+
+    /// The distributed P of `c`, with block size d both ways so that the
+    /// Galerkin operator has nodal blocks.
+    fn prolongation(&self, c: Coarse) -> Result<CoarseLevel, String> {
+        let mut p: Mat = ptr::null_mut();
+        let nz = (self.block + 1) as PetscInt;
+        // SAFETY: each call's arrays outlive it; P is destroyed with the system.
+        unsafe {
+            check(
+                MatCreateAIJ(
+                    self.comm,
+                    self.n_owned as PetscInt,
+                    c.n_owned as PetscInt,
+                    self.n_global as PetscInt,
+                    c.n_global as PetscInt,
+                    nz,
+                    ptr::null(),
+                    nz,
+                    ptr::null(),
+                    &mut p,
+                ),
+                "MatCreateAIJ",
+            )?;
+            check(MatSetBlockSizes(p, self.block as PetscInt, self.block as PetscInt), "MatSetBlockSizes")?;
+            for &(r, col, v) in &c.entries {
+                let (r, col) = (r as PetscInt, col as PetscInt);
+                check(MatSetValues(p, 1, &r, 1, &col, &v, INSERT_VALUES), "MatSetValues")?;
+            }
+            check(MatAssemblyBegin(p, MAT_FINAL_ASSEMBLY), "MatAssemblyBegin")?;
+            check(MatAssemblyEnd(p, MAT_FINAL_ASSEMBLY), "MatAssemblyEnd")?;
+        }
+        Ok(CoarseLevel {
+            p,
+            ac: ptr::null_mut(),
+            owned_coords: c.owned_coords,
+            n_owned: c.n_owned,
+            n_global: c.n_global,
+        })
     }
 
     /// Local CSR values (`values[k]` for the entry `col_idx[k]` of its row),
@@ -311,22 +409,53 @@ impl PetscSystem {
                 )?;
                 check(VecAssemblyBegin(x), "VecAssemblyBegin")?;
                 check(VecAssemblyEnd(x), "VecAssemblyEnd")?;
-                // The rigid-body modes from the owned nodes' coordinates.
-                check(VecCreateMPI(comm, m, big, &mut xyz), "VecCreateMPI")?;
-                check(VecSetBlockSize(xyz, self.block as PetscInt), "VecSetBlockSize")?;
-                let rows: std::vec::Vec<PetscInt> =
-                    (self.first_owned..self.first_owned + self.n_owned).map(|r| r as PetscInt).collect();
-                check(VecSetValues(xyz, m, rows.as_ptr(), self.owned_coords.as_ptr(), INSERT_VALUES), "VecSetValues")?;
-                check(VecAssemblyBegin(xyz), "VecAssemblyBegin")?;
-                check(VecAssemblyEnd(xyz), "VecAssemblyEnd")?;
-                check(MatNullSpaceCreateRigidBody(xyz, &mut nsp), "MatNullSpaceCreateRigidBody")?;
-                check(MatSetNearNullSpace(self.aij, nsp), "MatSetNearNullSpace")?;
-
                 check(KSPCreate(comm, &mut ksp), "KSPCreate")?;
                 check(KSPSetOperators(ksp, self.aij, self.aij), "KSPSetOperators")?;
                 check(KSPSetType(ksp, c_name("cg").as_ptr()), "KSPSetType")?;
                 check(KSPGetPC(ksp, &mut pc), "KSPGetPC")?;
-                check(PCSetType(pc, c_name("gamg").as_ptr()), "PCSetType")?;
+                // AMG on the P1 level of a two-level p-multigrid (Chebyshev
+                // on point blocks on the order-p level), or on the matrix
+                // itself when there is no P1 level.
+                let mut amg: Pc = pc;
+                let (amg_matrix, level_rows, level_coords) = match &mut self.coarse {
+                    None => (self.aij, (m, big), &self.owned_coords),
+                    Some(c) => {
+                        let reuse = if c.ac.is_null() { MAT_INITIAL_MATRIX } else { MAT_REUSE_MATRIX };
+                        check(MatPtAP(self.aij, c.p, reuse, 2.0, &mut c.ac), "MatPtAP")?;
+                        check(PCSetType(pc, c_name("mg").as_ptr()), "PCSetType")?;
+                        check(PCMGSetLevels(pc, 2, ptr::null_mut()), "PCMGSetLevels")?;
+                        check(PCMGSetGalerkin(pc, PC_MG_GALERKIN_NONE), "PCMGSetGalerkin")?;
+                        check(PCMGSetInterpolation(pc, 1, c.p), "PCMGSetInterpolation")?;
+                        let (mut smoother, mut spc, mut coarse): (Ksp, Pc, Ksp) =
+                            (ptr::null_mut(), ptr::null_mut(), ptr::null_mut());
+                        check(PCMGGetSmoother(pc, 1, &mut smoother), "PCMGGetSmoother")?;
+                        check(KSPSetOperators(smoother, self.aij, self.aij), "KSPSetOperators")?;
+                        check(KSPSetType(smoother, c_name("chebyshev").as_ptr()), "KSPSetType")?;
+                        check(KSPGetPC(smoother, &mut spc), "KSPGetPC")?;
+                        check(PCSetType(spc, c_name("pbjacobi").as_ptr()), "PCSetType")?;
+                        check(KSPSetTolerances(smoother, 0.0, 0.0, PETSC_DEFAULT as f64, 3), "KSPSetTolerances")?;
+                        check(PCMGGetCoarseSolve(pc, &mut coarse), "PCMGGetCoarseSolve")?;
+                        check(KSPSetOperators(coarse, c.ac, c.ac), "KSPSetOperators")?;
+                        check(KSPSetType(coarse, c_name("preonly").as_ptr()), "KSPSetType")?;
+                        check(KSPGetPC(coarse, &mut amg), "KSPGetPC")?;
+                        (c.ac, (c.n_owned as PetscInt, c.n_global as PetscInt), &c.owned_coords)
+                    }
+                };
+                check(PCSetType(amg, c_name("gamg").as_ptr()), "PCSetType")?;
+                // The rigid-body modes of AMG's matrix, from its owned nodes' coordinates.
+                check(VecCreateMPI(comm, level_rows.0, level_rows.1, &mut xyz), "VecCreateMPI")?;
+                check(VecSetBlockSize(xyz, self.block as PetscInt), "VecSetBlockSize")?;
+                let mut lo: PetscInt = 0;
+                check(VecGetOwnershipRange(xyz, &mut lo, ptr::null_mut()), "VecGetOwnershipRange")?;
+                let rows: std::vec::Vec<PetscInt> = (lo..lo + level_rows.0).collect();
+                check(
+                    VecSetValues(xyz, level_rows.0, rows.as_ptr(), level_coords.as_ptr(), INSERT_VALUES),
+                    "VecSetValues",
+                )?;
+                check(VecAssemblyBegin(xyz), "VecAssemblyBegin")?;
+                check(VecAssemblyEnd(xyz), "VecAssemblyEnd")?;
+                check(MatNullSpaceCreateRigidBody(xyz, &mut nsp), "MatNullSpaceCreateRigidBody")?;
+                check(MatSetNearNullSpace(amg_matrix, nsp), "MatSetNearNullSpace")?;
                 check(KSPSetTolerances(ksp, rtol, 1e-300, PETSC_DEFAULT as f64, 10_000), "KSPSetTolerances")?;
                 check(KSPSetInitialGuessNonzero(ksp, PETSC_TRUE), "KSPSetInitialGuessNonzero")?;
                 check(KSPSetFromOptions(ksp), "KSPSetFromOptions")?;
@@ -370,6 +499,10 @@ impl Drop for PetscSystem {
     fn drop(&mut self) {
         // SAFETY: the handles were created by PETSc or are null.
         unsafe {
+            if let Some(c) = &mut self.coarse {
+                MatDestroy(&mut c.p);
+                MatDestroy(&mut c.ac);
+            }
             MatDestroy(&mut self.aij);
             MatDestroy(&mut self.is);
             MatDestroy(&mut self.local);
