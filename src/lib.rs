@@ -13,7 +13,8 @@
 //!                                             quality and certified validity
 //!   → assembly → solver → optimize            systems, their solvers, the
 //!                                             optimisation stage
-//!   → curve → session                         the pipeline, and its stateful form
+//!   → curve → session → distributed           the pipeline, its stateful form, and its
+//!                                             elastic stage over MPI processes (`mpi`)
 //!   → cases → io → ffi                        demo and test meshes, files, the C ABI
 //! ```
 //!
@@ -72,6 +73,7 @@ pub mod solver;
 /// Built-in demonstration and test meshes (the `demo` feature, on by default).
 #[cfg(any(feature = "demo", feature = "internals", test))]
 pub mod cases;
+/// cbindgen:ignore
 #[cfg(feature = "mpi")]
 pub mod distributed;
 pub mod ffi;

@@ -5,7 +5,7 @@ use std::collections::BTreeSet;
 use std::path::Path;
 
 /// Bottom to top, as in the documentation of `src/lib.rs`.
-const CHAIN: [&str; 19] = [
+const CHAIN: [&str; 20] = [
     "error",
     "jacobi",
     "linalg",
@@ -22,6 +22,7 @@ const CHAIN: [&str; 19] = [
     "optimize",
     "curve",
     "session",
+    "distributed",
     "cases",
     "io",
     "ffi",

@@ -251,7 +251,7 @@ impl Part {
     ) -> Result<(HighOrderMesh, IncrementsReport)> {
         let mut mesh = self.mesh.clone();
         let dim = mesh.dim();
-        let dofs = if self.stepping.condense { DofMap::condensed(&mesh) } else { DofMap::new(&mesh) };
+        let dofs = self.dofs(&mesh);
         // Global row of each local system row.
         let mut global = vec![0usize; dofs.n_system];
         let mut owned_coords = vec![0.0; self.n_owned];
@@ -285,10 +285,7 @@ impl Part {
         };
         let nodes = NodeSet::new(mesh.simplex, mesh.order, mesh.spacing);
         let kernel = LinearElasticKernel::for_nodes(&nodes, self.material);
-        let rate: Option<Vec<f64>> = self
-            .rate
-            .as_ref()
-            .map(|r| (0..r.len()).filter(|&d| dofs.free_index(d).is_some()).map(|d| r[d]).collect::<Vec<f64>>());
+        let rate: Option<Vec<f64>> = self.rate.as_ref().map(|r| by_free_index(&dofs, r));
         let result = solve_increments_from(&mut mesh, &kernel, &self.ubar, stepping, rate.as_deref(), timings, tick);
         // Every process ends the same way: the first error (by rank), if any.
         let local = result.as_ref().err().map(|e| (0, e.to_string()));
@@ -304,6 +301,15 @@ impl Part {
 }
 
 impl Part {
+    /// The dofs of `mesh` (this part's, at some geometry) as the stage numbers them.
+    fn dofs(&self, mesh: &HighOrderMesh) -> DofMap {
+        if self.stepping.condense {
+            DofMap::condensed(mesh)
+        } else {
+            DofMap::new(mesh)
+        }
+    }
+
     /// The P1 level of this part: the rows of the prolongation for the
     /// owned system nodes (the P1 interpolant at each node: its barycentric
     /// coordinates in a cell holding it, on the cell's free vertices), and
@@ -379,7 +385,7 @@ fn barycentric(coords: &[[f64; 3]], corner: &[usize], a: usize, dim: usize) -> V
 /// A rank's owned nodes: global index, then position and rate per dof.
 fn send_back(world: &World, part: &Part, mesh: &HighOrderMesh, first_rate: Option<&[f64]>) {
     let dim = mesh.dim();
-    let dofs = if part.stepping.condense { DofMap::condensed(mesh) } else { DofMap::new(mesh) };
+    let dofs = part.dofs(mesh);
     let mut ints = Vec::new();
     let mut floats = Vec::new();
     for n in (0..mesh.n_nodes()).filter(|&n| part.owned[n]) {
@@ -416,7 +422,6 @@ impl ElasticBackend for Lead {
     ) -> Result<IncrementsReport> {
         let world = &self.world;
         let size = self.size();
-        let dim = mesh.dim();
         let gdofs = if stepping.condense { DofMap::condensed(mesh) } else { DofMap::new(mesh) };
         // Rates per dof of the whole mesh (NaN where prescribed).
         let rate_per_dof: Option<Vec<f64>> = rate
@@ -448,39 +453,7 @@ impl ElasticBackend for Lead {
             Ok(())
         };
         let (local_mesh, mut report) = part.solve(world, timings, &mut forward)?;
-        // Gather the positions and first rates of every rank's owned nodes.
-        let mut rate_out = report.first_rate.as_ref().map(|_| vec![f64::NAN; mesh.coords.len()]);
-        let local_dofs = if stepping.condense { DofMap::condensed(&local_mesh) } else { DofMap::new(&local_mesh) };
-        for n in (0..local_mesh.n_nodes()).filter(|&n| part.owned[n]) {
-            let g = part.global_node[n];
-            mesh.coords[g * dim..(g + 1) * dim].copy_from_slice(&local_mesh.coords[n * dim..(n + 1) * dim]);
-            if let (Some(out), Some(r)) = (&mut rate_out, &report.first_rate) {
-                for c in 0..dim {
-                    if let Some(f) = local_dofs.free_index(n * dim + c) {
-                        out[g * dim + c] = r[f];
-                    }
-                }
-            }
-        }
-        for r in 1..size {
-            let from = world.0.process_at_rank(r as i32);
-            let (ints, _) = from.receive_vec::<u64>();
-            let (floats, _) = from.receive_vec::<f64>();
-            for (k, &g) in ints.iter().enumerate() {
-                let g = g as usize;
-                let row = &floats[k * 2 * dim..(k + 1) * 2 * dim];
-                mesh.coords[g * dim..(g + 1) * dim].copy_from_slice(&row[..dim]);
-                if let Some(out) = &mut rate_out {
-                    out[g * dim..(g + 1) * dim].copy_from_slice(&row[dim..]);
-                }
-            }
-        }
-        report.first_rate = match rate_out {
-            Some(per_dof) if report.first_rate.is_some() => {
-                Some((0..per_dof.len()).filter(|&d| gdofs.free_index(d).is_some()).map(|d| per_dof[d]).collect())
-            }
-            _ => None,
-        };
+        report.first_rate = self.gather(mesh, &part, &local_mesh, report.first_rate.as_deref(), &gdofs);
         // The certified bounds were of rank 0's cells only.
         report.certified = None;
         report.n_free = gdofs.n_free;
@@ -490,6 +463,56 @@ impl ElasticBackend for Lead {
             None => Ok(report),
         }
     }
+}
+
+impl Lead {
+    /// Put into `mesh` the positions of every rank's owned nodes (rank 0's
+    /// from `local_mesh`, the others' sent by [`send_back`]); return the
+    /// first increment's rates on the whole mesh's free dofs (`dofs`), if
+    /// the ranks had them (`first_rate`, rank 0's on its part's free dofs).
+    fn gather(
+        &self,
+        mesh: &mut HighOrderMesh,
+        part: &Part,
+        local_mesh: &HighOrderMesh,
+        first_rate: Option<&[f64]>,
+        dofs: &DofMap,
+    ) -> Option<Vec<f64>> {
+        let dim = mesh.dim();
+        let mut per_dof = vec![f64::NAN; mesh.coords.len()];
+        let local_dofs = part.dofs(local_mesh);
+        for n in (0..local_mesh.n_nodes()).filter(|&n| part.owned[n]) {
+            let g = part.global_node[n];
+            mesh.coords[g * dim..(g + 1) * dim].copy_from_slice(&local_mesh.coords[n * dim..(n + 1) * dim]);
+            for c in 0..dim {
+                if let (Some(f), Some(r)) = (local_dofs.free_index(n * dim + c), first_rate) {
+                    per_dof[g * dim + c] = r[f];
+                }
+            }
+        }
+        for r in 1..self.size() {
+            let from = self.world.0.process_at_rank(r as i32);
+            let (ints, _) = from.receive_vec::<u64>();
+            let (floats, _) = from.receive_vec::<f64>();
+            for (k, &g) in ints.iter().enumerate() {
+                let (g, row) = (g as usize, &floats[k * 2 * dim..(k + 1) * 2 * dim]);
+                mesh.coords[g * dim..(g + 1) * dim].copy_from_slice(&row[..dim]);
+                per_dof[g * dim..(g + 1) * dim].copy_from_slice(&row[dim..]);
+            }
+        }
+        first_rate.map(|_| by_free_index(dofs, &per_dof))
+    }
+}
+
+/// The values `per_dof` (one per dof) of the free dofs of `dofs`, in their order.
+fn by_free_index(dofs: &DofMap, per_dof: &[f64]) -> Vec<f64> {
+    let mut out = vec![0.0; dofs.n_free];
+    for (d, &v) in per_dof.iter().enumerate() {
+        if let Some(f) = dofs.free_index(d) {
+            out[f] = v;
+        }
+    }
+    out
 }
 
 /// Which cells and nodes each rank takes, and PETSc's numbering.

@@ -365,133 +365,172 @@ impl PetscSystem {
     /// one is the sum over processes) from the guess `guess` (local rows;
     /// only owned rows are read), to ‖r‖ ≤ `rtol` ‖b‖.
     pub fn solve(&mut self, rhs: &[f64], guess: &[f64], rtol: f64) -> Result<Solved, String> {
-        let comm = self.comm;
         let (m, big) = (self.n_owned as PetscInt, self.n_global as PetscInt);
-        let (mut b, mut x, mut xyz, mut all): (Vec, Vec, Vec, Vec) =
-            (ptr::null_mut(), ptr::null_mut(), ptr::null_mut(), ptr::null_mut());
-        let (mut ksp, mut pc, mut scatter, mut nsp): (Ksp, Pc, VecScatter, MatNullSpace) =
-            (ptr::null_mut(), ptr::null_mut(), ptr::null_mut(), ptr::null_mut());
         let owned: std::vec::Vec<usize> = (0..self.global.len())
             .filter(|&l| (self.first_owned..self.first_owned + self.n_owned).contains(&(self.global[l] as usize)))
             .collect();
         let owned_rows: std::vec::Vec<PetscInt> = owned.iter().map(|&l| self.global[l]).collect();
         let owned_guess: std::vec::Vec<f64> = owned.iter().map(|&l| guess[l]).collect();
-        // SAFETY: every object is created here or in `new`, used with
-        // arrays of the lengths PETSc expects, and destroyed below.
-        let result = unsafe {
-            (|| -> Result<Solved, String> {
-                check(MatAssemblyBegin(self.local, MAT_FINAL_ASSEMBLY), "MatAssemblyBegin")?;
-                check(MatAssemblyEnd(self.local, MAT_FINAL_ASSEMBLY), "MatAssemblyEnd")?;
-                check(MatAssemblyBegin(self.is, MAT_FINAL_ASSEMBLY), "MatAssemblyBegin")?;
-                check(MatAssemblyEnd(self.is, MAT_FINAL_ASSEMBLY), "MatAssemblyEnd")?;
-                let reuse = if self.aij.is_null() { MAT_INITIAL_MATRIX } else { MAT_REUSE_MATRIX };
-                check(MatConvert(self.is, c_name("aij").as_ptr(), reuse, &mut self.aij), "MatConvert")?;
-                check(VecCreateMPI(comm, m, big, &mut b), "VecCreateMPI")?;
-                check(VecSetBlockSize(b, self.block as PetscInt), "VecSetBlockSize")?;
-                check(VecSet(b, 0.0), "VecSet")?;
-                check(
-                    VecSetValues(b, rhs.len() as PetscInt, self.global.as_ptr(), rhs.as_ptr(), ADD_VALUES),
-                    "VecSetValues",
-                )?;
-                check(VecAssemblyBegin(b), "VecAssemblyBegin")?;
-                check(VecAssemblyEnd(b), "VecAssemblyEnd")?;
-                check(VecCreateMPI(comm, m, big, &mut x), "VecCreateMPI")?;
-                check(VecSetBlockSize(x, self.block as PetscInt), "VecSetBlockSize")?;
-                check(
-                    VecSetValues(
-                        x,
-                        owned_rows.len() as PetscInt,
-                        owned_rows.as_ptr(),
-                        owned_guess.as_ptr(),
-                        INSERT_VALUES,
-                    ),
-                    "VecSetValues",
-                )?;
-                check(VecAssemblyBegin(x), "VecAssemblyBegin")?;
-                check(VecAssemblyEnd(x), "VecAssemblyEnd")?;
-                check(KSPCreate(comm, &mut ksp), "KSPCreate")?;
-                check(KSPSetOperators(ksp, self.aij, self.aij), "KSPSetOperators")?;
-                check(KSPSetType(ksp, c_name("cg").as_ptr()), "KSPSetType")?;
-                check(KSPGetPC(ksp, &mut pc), "KSPGetPC")?;
-                // AMG on the P1 level of a two-level p-multigrid (Chebyshev
-                // on point blocks on the order-p level), or on the matrix
-                // itself when there is no P1 level.
-                let mut amg: Pc = pc;
-                let (amg_matrix, level_rows, level_coords) = match &mut self.coarse {
-                    None => (self.aij, (m, big), &self.owned_coords),
-                    Some(c) => {
-                        let reuse = if c.ac.is_null() { MAT_INITIAL_MATRIX } else { MAT_REUSE_MATRIX };
-                        check(MatPtAP(self.aij, c.p, reuse, 2.0, &mut c.ac), "MatPtAP")?;
-                        check(PCSetType(pc, c_name("mg").as_ptr()), "PCSetType")?;
-                        check(PCMGSetLevels(pc, 2, ptr::null_mut()), "PCMGSetLevels")?;
-                        check(PCMGSetGalerkin(pc, PC_MG_GALERKIN_NONE), "PCMGSetGalerkin")?;
-                        check(PCMGSetInterpolation(pc, 1, c.p), "PCMGSetInterpolation")?;
-                        let (mut smoother, mut spc, mut coarse): (Ksp, Pc, Ksp) =
-                            (ptr::null_mut(), ptr::null_mut(), ptr::null_mut());
-                        check(PCMGGetSmoother(pc, 1, &mut smoother), "PCMGGetSmoother")?;
-                        check(KSPSetOperators(smoother, self.aij, self.aij), "KSPSetOperators")?;
-                        check(KSPSetType(smoother, c_name("chebyshev").as_ptr()), "KSPSetType")?;
-                        check(KSPGetPC(smoother, &mut spc), "KSPGetPC")?;
-                        check(PCSetType(spc, c_name("pbjacobi").as_ptr()), "PCSetType")?;
-                        check(KSPSetTolerances(smoother, 0.0, 0.0, PETSC_DEFAULT as f64, 3), "KSPSetTolerances")?;
-                        check(PCMGGetCoarseSolve(pc, &mut coarse), "PCMGGetCoarseSolve")?;
-                        check(KSPSetOperators(coarse, c.ac, c.ac), "KSPSetOperators")?;
-                        check(KSPSetType(coarse, c_name("preonly").as_ptr()), "KSPSetType")?;
-                        check(KSPGetPC(coarse, &mut amg), "KSPGetPC")?;
-                        (c.ac, (c.n_owned as PetscInt, c.n_global as PetscInt), &c.owned_coords)
-                    }
-                };
-                check(PCSetType(amg, c_name("gamg").as_ptr()), "PCSetType")?;
-                // The rigid-body modes of AMG's matrix, from its owned nodes' coordinates.
-                check(VecCreateMPI(comm, level_rows.0, level_rows.1, &mut xyz), "VecCreateMPI")?;
-                check(VecSetBlockSize(xyz, self.block as PetscInt), "VecSetBlockSize")?;
-                let mut lo: PetscInt = 0;
-                check(VecGetOwnershipRange(xyz, &mut lo, ptr::null_mut()), "VecGetOwnershipRange")?;
-                let rows: std::vec::Vec<PetscInt> = (lo..lo + level_rows.0).collect();
-                check(
-                    VecSetValues(xyz, level_rows.0, rows.as_ptr(), level_coords.as_ptr(), INSERT_VALUES),
-                    "VecSetValues",
-                )?;
-                check(VecAssemblyBegin(xyz), "VecAssemblyBegin")?;
-                check(VecAssemblyEnd(xyz), "VecAssemblyEnd")?;
-                check(MatNullSpaceCreateRigidBody(xyz, &mut nsp), "MatNullSpaceCreateRigidBody")?;
-                check(MatSetNearNullSpace(amg_matrix, nsp), "MatSetNearNullSpace")?;
-                check(KSPSetTolerances(ksp, rtol, 1e-300, PETSC_DEFAULT as f64, 10_000), "KSPSetTolerances")?;
-                check(KSPSetInitialGuessNonzero(ksp, PETSC_TRUE), "KSPSetInitialGuessNonzero")?;
-                check(KSPSetFromOptions(ksp), "KSPSetFromOptions")?;
-                check(KSPSolve(ksp, b, x), "KSPSolve")?;
-                let (mut its, mut reason) = (0 as PetscInt, 0 as c_int);
-                check(KSPGetIterationNumber(ksp, &mut its), "KSPGetIterationNumber")?;
-                check(KSPGetConvergedReason(ksp, &mut reason), "KSPGetConvergedReason")?;
-                if reason <= 0 {
-                    let mut s: *const c_char = ptr::null();
-                    KSPGetConvergedReasonString(ksp, &mut s);
-                    let why =
-                        if s.is_null() { format!("{reason}") } else { CStr::from_ptr(s).to_string_lossy().into() };
-                    return Err(format!("PETSc CG with GAMG did not converge in {its} iterations: {why}"));
-                }
-                check(VecScatterCreateToAll(x, &mut scatter, &mut all), "VecScatterCreateToAll")?;
-                check(VecScatterBegin(scatter, x, all, INSERT_VALUES, SCATTER_FORWARD), "VecScatterBegin")?;
-                check(VecScatterEnd(scatter, x, all, INSERT_VALUES, SCATTER_FORWARD), "VecScatterEnd")?;
-                let mut n: PetscInt = 0;
-                check(VecGetLocalSize(all, &mut n), "VecGetLocalSize")?;
-                let mut a: *const f64 = ptr::null();
-                check(VecGetArrayRead(all, &mut a), "VecGetArrayRead")?;
-                let values = std::slice::from_raw_parts(a, n as usize).to_vec();
-                check(VecRestoreArrayRead(all, &mut a), "VecRestoreArrayRead")?;
-                Ok(Solved { iterations: its as usize, all: values })
-            })()
+        let mut h = Handles::default();
+        // SAFETY: every object is created here or in `new`, used with arrays
+        // of the lengths PETSc expects, and destroyed with `h` or `self`.
+        unsafe {
+            self.assemble()?;
+            h.b = self.vector(m, big, &self.global, rhs, ADD_VALUES)?;
+            h.x = self.vector(m, big, &owned_rows, &owned_guess, INSERT_VALUES)?;
+            check(KSPCreate(self.comm, &mut h.ksp), "KSPCreate")?;
+            check(KSPSetOperators(h.ksp, self.aij, self.aij), "KSPSetOperators")?;
+            check(KSPSetType(h.ksp, c_name("cg").as_ptr()), "KSPSetType")?;
+            let mut pc: Pc = ptr::null_mut();
+            check(KSPGetPC(h.ksp, &mut pc), "KSPGetPC")?;
+            self.preconditioner(pc, &mut h)?;
+            check(KSPSetTolerances(h.ksp, rtol, 1e-300, PETSC_DEFAULT as f64, 10_000), "KSPSetTolerances")?;
+            check(KSPSetInitialGuessNonzero(h.ksp, PETSC_TRUE), "KSPSetInitialGuessNonzero")?;
+            check(KSPSetFromOptions(h.ksp), "KSPSetFromOptions")?;
+            check(KSPSolve(h.ksp, h.b, h.x), "KSPSolve")?;
+            let (mut its, mut reason) = (0 as PetscInt, 0 as c_int);
+            check(KSPGetIterationNumber(h.ksp, &mut its), "KSPGetIterationNumber")?;
+            check(KSPGetConvergedReason(h.ksp, &mut reason), "KSPGetConvergedReason")?;
+            if reason <= 0 {
+                let mut s: *const c_char = ptr::null();
+                KSPGetConvergedReasonString(h.ksp, &mut s);
+                let why = if s.is_null() { format!("{reason}") } else { CStr::from_ptr(s).to_string_lossy().into() };
+                return Err(format!("PETSc's CG did not converge in {its} iterations: {why}"));
+            }
+            Ok(Solved { iterations: its as usize, all: gather(&mut h)? })
+        }
+    }
+
+    /// Assemble the local matrix and convert the unassembled one to `aij`.
+    unsafe fn assemble(&mut self) -> Result<(), String> {
+        check(MatAssemblyBegin(self.local, MAT_FINAL_ASSEMBLY), "MatAssemblyBegin")?;
+        check(MatAssemblyEnd(self.local, MAT_FINAL_ASSEMBLY), "MatAssemblyEnd")?;
+        check(MatAssemblyBegin(self.is, MAT_FINAL_ASSEMBLY), "MatAssemblyBegin")?;
+        check(MatAssemblyEnd(self.is, MAT_FINAL_ASSEMBLY), "MatAssemblyEnd")?;
+        let reuse = if self.aij.is_null() { MAT_INITIAL_MATRIX } else { MAT_REUSE_MATRIX };
+        check(MatConvert(self.is, c_name("aij").as_ptr(), reuse, &mut self.aij), "MatConvert")
+    }
+
+    /// A distributed vector of `m` local and `big` global rows, block size
+    /// d, zero but for `values` at the global `rows` (added or inserted).
+    unsafe fn vector(
+        &self,
+        m: PetscInt,
+        big: PetscInt,
+        rows: &[PetscInt],
+        values: &[f64],
+        mode: c_int,
+    ) -> Result<Vec, String> {
+        let mut v: Vec = ptr::null_mut();
+        check(VecCreateMPI(self.comm, m, big, &mut v), "VecCreateMPI")?;
+        let filled = (|| {
+            check(VecSetBlockSize(v, self.block as PetscInt), "VecSetBlockSize")?;
+            check(VecSet(v, 0.0), "VecSet")?;
+            check(VecSetValues(v, rows.len() as PetscInt, rows.as_ptr(), values.as_ptr(), mode), "VecSetValues")?;
+            check(VecAssemblyBegin(v), "VecAssemblyBegin")?;
+            check(VecAssemblyEnd(v), "VecAssemblyEnd")
+        })();
+        if let Err(e) = filled {
+            VecDestroy(&mut v);
+            return Err(e);
+        }
+        Ok(v)
+    }
+
+    /// The preconditioner `pc`: a two-level p-multigrid (Chebyshev on point
+    /// blocks on the order-p level, one AMG V-cycle on the P1 level), or AMG
+    /// on the matrix itself when there is no P1 level; AMG is given the
+    /// rigid-body modes of its matrix from its owned nodes' coordinates.
+    unsafe fn preconditioner(&mut self, pc: Pc, h: &mut Handles) -> Result<(), String> {
+        let mut amg: Pc = pc;
+        let (amg_matrix, (m, big), coords) = match &mut self.coarse {
+            None => (self.aij, (self.n_owned, self.n_global), self.owned_coords.clone()),
+            Some(c) => {
+                let reuse = if c.ac.is_null() { MAT_INITIAL_MATRIX } else { MAT_REUSE_MATRIX };
+                check(MatPtAP(self.aij, c.p, reuse, 2.0, &mut c.ac), "MatPtAP")?;
+                check(PCSetType(pc, c_name("mg").as_ptr()), "PCSetType")?;
+                check(PCMGSetLevels(pc, 2, ptr::null_mut()), "PCMGSetLevels")?;
+                check(PCMGSetGalerkin(pc, PC_MG_GALERKIN_NONE), "PCMGSetGalerkin")?;
+                check(PCMGSetInterpolation(pc, 1, c.p), "PCMGSetInterpolation")?;
+                let (mut smoother, mut spc, mut coarse): (Ksp, Pc, Ksp) =
+                    (ptr::null_mut(), ptr::null_mut(), ptr::null_mut());
+                check(PCMGGetSmoother(pc, 1, &mut smoother), "PCMGGetSmoother")?;
+                check(KSPSetOperators(smoother, self.aij, self.aij), "KSPSetOperators")?;
+                check(KSPSetType(smoother, c_name("chebyshev").as_ptr()), "KSPSetType")?;
+                check(KSPGetPC(smoother, &mut spc), "KSPGetPC")?;
+                check(PCSetType(spc, c_name("pbjacobi").as_ptr()), "PCSetType")?;
+                check(KSPSetTolerances(smoother, 0.0, 0.0, PETSC_DEFAULT as f64, 3), "KSPSetTolerances")?;
+                check(PCMGGetCoarseSolve(pc, &mut coarse), "PCMGGetCoarseSolve")?;
+                check(KSPSetOperators(coarse, c.ac, c.ac), "KSPSetOperators")?;
+                check(KSPSetType(coarse, c_name("preonly").as_ptr()), "KSPSetType")?;
+                check(KSPGetPC(coarse, &mut amg), "KSPGetPC")?;
+                (c.ac, (c.n_owned, c.n_global), c.owned_coords.clone())
+            }
         };
+        check(PCSetType(amg, c_name("gamg").as_ptr()), "PCSetType")?;
+        let (m, big) = (m as PetscInt, big as PetscInt);
+        h.xyz = self.vector(m, big, &[], &[], INSERT_VALUES)?;
+        let mut lo: PetscInt = 0;
+        check(VecGetOwnershipRange(h.xyz, &mut lo, ptr::null_mut()), "VecGetOwnershipRange")?;
+        let rows: std::vec::Vec<PetscInt> = (lo..lo + m).collect();
+        check(VecSetValues(h.xyz, m, rows.as_ptr(), coords.as_ptr(), INSERT_VALUES), "VecSetValues")?;
+        check(VecAssemblyBegin(h.xyz), "VecAssemblyBegin")?;
+        check(VecAssemblyEnd(h.xyz), "VecAssemblyEnd")?;
+        check(MatNullSpaceCreateRigidBody(h.xyz, &mut h.nsp), "MatNullSpaceCreateRigidBody")?;
+        check(MatSetNearNullSpace(amg_matrix, h.nsp), "MatSetNearNullSpace")
+    }
+}
+
+/// Every value of the solution `h.x`, on every process.
+unsafe fn gather(h: &mut Handles) -> Result<std::vec::Vec<f64>, String> {
+    check(VecScatterCreateToAll(h.x, &mut h.scatter, &mut h.all), "VecScatterCreateToAll")?;
+    check(VecScatterBegin(h.scatter, h.x, h.all, INSERT_VALUES, SCATTER_FORWARD), "VecScatterBegin")?;
+    check(VecScatterEnd(h.scatter, h.x, h.all, INSERT_VALUES, SCATTER_FORWARD), "VecScatterEnd")?;
+    let mut n: PetscInt = 0;
+    check(VecGetLocalSize(h.all, &mut n), "VecGetLocalSize")?;
+    let mut a: *const f64 = ptr::null();
+    check(VecGetArrayRead(h.all, &mut a), "VecGetArrayRead")?;
+    let values = std::slice::from_raw_parts(a, n as usize).to_vec();
+    check(VecRestoreArrayRead(h.all, &mut a), "VecRestoreArrayRead")?;
+    Ok(values)
+}
+
+/// The objects of one solve, destroyed when it ends however it ends.
+struct Handles {
+    b: Vec,
+    x: Vec,
+    xyz: Vec,
+    all: Vec,
+    ksp: Ksp,
+    scatter: VecScatter,
+    nsp: MatNullSpace,
+}
+
+impl Default for Handles {
+    fn default() -> Self {
+        Handles {
+            b: ptr::null_mut(),
+            x: ptr::null_mut(),
+            xyz: ptr::null_mut(),
+            all: ptr::null_mut(),
+            ksp: ptr::null_mut(),
+            scatter: ptr::null_mut(),
+            nsp: ptr::null_mut(),
+        }
+    }
+}
+
+impl Drop for Handles {
+    fn drop(&mut self) {
         // SAFETY: destroying null handles is a no-op in PETSc.
         unsafe {
-            KSPDestroy(&mut ksp);
-            MatNullSpaceDestroy(&mut nsp);
-            VecScatterDestroy(&mut scatter);
-            for v in [&mut b, &mut x, &mut xyz, &mut all] {
+            KSPDestroy(&mut self.ksp);
+            MatNullSpaceDestroy(&mut self.nsp);
+            VecScatterDestroy(&mut self.scatter);
+            for v in [&mut self.b, &mut self.x, &mut self.xyz, &mut self.all] {
                 VecDestroy(v);
             }
         }
-        result
     }
 }
 

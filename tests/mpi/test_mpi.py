@@ -156,6 +156,25 @@ def test_distributed_run_gives_the_serial_mesh(cases, case, order, optimize, tmp
             assert worst < NODE_TOL, (n, worst)
 
 
+def test_an_elastic_stage_that_stops_short_stops_where_the_serial_one_does(tmp_path):
+    # The gmsh sphere cavity of radius 0.6 at p = 3: adaptive stepping gives
+    # up at load 0.9 on cell 1862; the rest of the load comes from the first
+    # increment's solution (gathered from every process) and the
+    # optimisation untangles the cell.
+    args = [str(REPO / "tests" / "data" / "sphere_cavity_r06_gmsh.msh"), "--geometry", "7=sphere:0,0,0,0.6",
+            "--order", "3"]
+    s = serial(args, tmp_path)
+    assert s["elastic_stop"] is not None and s["optimization"]["invalid_before"] > 0
+    for n in (1, 2, 3, 4):
+        r = distributed(n, args, tmp_path)
+        assert r.returncode == 0, f"np {n}:\n{r.stderr}"
+        m = json.loads((tmp_path / "m.json").read_text())
+        assert m["step_backs"] == s["step_backs"] and m["load_fractions"] == s["load_fractions"]
+        assert m["elastic_stop"] == s["elastic_stop"]
+        assert m["certified_invalid_elements"] == 0
+        assert abs(m["min_q3"] - s["min_q3"]) < Q3_TOL["on"], (n, m["min_q3"], s["min_q3"])
+
+
 def test_a_failing_run_fails_alike_on_every_process_and_writes_nothing(cases, tmp_path):
     # One increment, no step back, no optimisation: the sphere cavity with
     # its caps kept inverts a cell in the elastic stage.

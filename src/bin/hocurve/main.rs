@@ -432,13 +432,26 @@ fn cmd_curve(argv: &[String], parallel: Parallel, ranks: Option<usize>) -> Resul
     write_mesh(&output, &curved)?;
     eprintln!("wrote {}", output.display());
     if let Some(r) = args.get("report") {
-        let mut text = report::curve_report_json(&curved.report, opts.spacing, Some(&output));
-        if let Some(n) = ranks {
-            text = text.replacen('{', &format!("{{\n  \"ranks\": {n},"), 1);
-        }
-        write_text_atomic(Path::new(r), &(text + "\n"))?;
-        eprintln!("wrote {r}");
+        write_curve_report(Path::new(r), &curved, opts.spacing, &output, ranks)?;
     }
+    Ok(())
+}
+
+/// The JSON report of a `curve` run, with the number of MPI processes when
+/// it had several (`ranks`).
+fn write_curve_report(
+    path: &Path,
+    curved: &CurvedMesh,
+    spacing: NodeSpacing,
+    output: &Path,
+    ranks: Option<usize>,
+) -> Result<()> {
+    let mut text = report::curve_report_json(&curved.report, spacing, Some(output));
+    if let Some(n) = ranks {
+        text = text.replacen('{', &format!("{{\n  \"ranks\": {n},"), 1);
+    }
+    write_text_atomic(path, &(text + "\n"))?;
+    eprintln!("wrote {}", path.display());
     Ok(())
 }
 
