@@ -11,7 +11,7 @@ use hocurve::curve::{curve, CurveOptions, CurvedMesh};
 use hocurve::mesh::{validate_and_orient, HighOrderMesh, Topology};
 use hocurve::reference::{NodeSet, NodeSpacing};
 use hocurve::session::Session;
-use hocurve::solver::{CsrView, ExternalAdapter, ExternalSolver, LinearSolver, SolverChoice};
+use hocurve::solver::{CsrView, ExternalAdapter, ExternalSolver, LinearSolver, LowerCscView, SolverChoice};
 use hocurve::Error;
 
 fn sphere_case() -> Case {
@@ -177,4 +177,47 @@ fn host_errors_and_non_finite_solutions_fail_the_run_and_change_nothing() {
     s.run(2).unwrap();
     assert_eq!(s.report().unwrap().solves.solver, "direct");
     assert_eq!(before, s.mesh().coords);
+}
+
+/// A host that takes the lower triangle: the full CSR is never built, it is
+/// handed the library's own arrays, and the iterations it counts reach the
+/// report.
+struct LowerHost {
+    calls: Arc<AtomicUsize>,
+}
+
+impl hocurve::solver::SystemSolver for LowerHost {
+    fn solve(&self, _: CsrView<'_>, _: &[f64], _: &mut [f64]) -> Result<(), String> {
+        Err("not called: the host takes the lower triangle".into())
+    }
+    fn takes_lower_triangle(&self) -> bool {
+        true
+    }
+    fn solve_lower(&self, a: LowerCscView<'_>, rhs: &[f64], x: &mut [f64]) -> Result<Option<usize>, String> {
+        self.calls.fetch_add(1, Ordering::SeqCst);
+        // Mirror it into a full CSR (the check of the layout) and solve by CG.
+        let lower = hocurve::solver::SymmetricCsc { n: a.n, col_ptr: a.col_ptr.to_vec(), row_idx: a.row_idx.to_vec() };
+        let full = hocurve::solver::FullCsrPattern::from_lower_csc(&lower);
+        let mut values = vec![0.0; full.col_idx.len()];
+        full.values_into(a.values, &mut values);
+        let csr = CsrView { n: a.n, row_ptr: &full.row_ptr, col_idx: &full.col_idx, values: &values };
+        check_csr(&csr)?;
+        pcg(csr, rhs, x).map(|()| Some(7))
+    }
+    fn name(&self) -> &'static str {
+        "lower-host"
+    }
+}
+
+#[test]
+fn a_host_taking_the_lower_triangle_gives_the_mesh_of_the_direct_solver() {
+    let calls = Arc::new(AtomicUsize::new(0));
+    let host = LowerHost { calls: calls.clone() };
+    let ext = run(2, SolverChoice::External(ExternalSolver::new(host)));
+    let direct = run(2, SolverChoice::Direct);
+    assert_eq!(calls.load(Ordering::SeqCst), 3, "one call per increment");
+    assert_eq!(ext.report.solves.solver, "lower-host");
+    assert_eq!(ext.report.solves.iterations, vec![7, 7, 7]);
+    let diff = ext.mesh.coords.iter().zip(&direct.mesh.coords).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    assert!(diff < 1e-9 * 4.0, "nodes differ by {diff:e}");
 }

@@ -15,6 +15,9 @@ use std::ptr;
 
 use mpi::ffi::MPI_Comm;
 
+use crate::solver::FullCsrPattern;
+use crate::sparse::SymmetricCsc;
+
 type PetscErrorCode = c_int;
 type PetscInt = i32;
 type PetscScalar = f64;
@@ -194,6 +197,8 @@ pub struct PetscSystem {
     /// Local CSR (both triangles, sorted columns) of the local rows.
     row_ptr: std::vec::Vec<PetscInt>,
     col_idx: std::vec::Vec<PetscInt>,
+    /// Per local CSR entry, the index of its value in the lower triangle's.
+    source: std::vec::Vec<u32>,
     values: std::vec::Vec<PetscScalar>,
     /// Global row of each local row.
     global: std::vec::Vec<PetscInt>,
@@ -246,7 +251,7 @@ pub struct Solved {
 }
 
 impl PetscSystem {
-    /// `row_ptr`/`col_idx`: the local matrix's full CSR pattern; `global`:
+    /// `lower`: the local matrix's pattern, its lower triangle; `global`:
     /// the global row of each local row; this process owns the `n_owned`
     /// global rows from `first_owned`, of `n_global`; `block` the unknowns
     /// per node, and `owned_coords` the owned nodes' coordinates in the
@@ -254,8 +259,7 @@ impl PetscSystem {
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         comm: MPI_Comm,
-        row_ptr: &[usize],
-        col_idx: &[usize],
+        lower: &SymmetricCsc,
         global: &[usize],
         first_owned: usize,
         n_owned: usize,
@@ -265,13 +269,19 @@ impl PetscSystem {
         coarse: Option<Coarse>,
     ) -> Result<PetscSystem, String> {
         let to_int = |v: usize| PetscInt::try_from(v).map_err(|_| format!("{v} does not fit PETSc's 32-bit integers"));
-        let row_ptr: std::vec::Vec<PetscInt> = row_ptr.iter().map(|&v| to_int(v)).collect::<Result<_, _>>()?;
-        let col_idx: std::vec::Vec<PetscInt> = col_idx.iter().map(|&v| to_int(v)).collect::<Result<_, _>>()?;
+        // Both triangles, as PETSc's AIJ wants them; the map from each entry
+        // to its lower-triangle value is kept, the rest dropped.
+        let full = FullCsrPattern::from_lower_csc(lower);
+        let row_ptr: std::vec::Vec<PetscInt> = full.row_ptr.iter().map(|&v| to_int(v)).collect::<Result<_, _>>()?;
+        let col_idx: std::vec::Vec<PetscInt> = full.col_idx.iter().map(|&v| to_int(v)).collect::<Result<_, _>>()?;
+        let source: std::vec::Vec<u32> = full.source.iter().map(|&k| k as u32).collect();
+        drop(full);
         let global: std::vec::Vec<PetscInt> = global.iter().map(|&v| to_int(v)).collect::<Result<_, _>>()?;
         to_int(n_global)?;
         let values = vec![0.0; col_idx.len()];
         let mut s = PetscSystem {
             comm,
+            source,
             row_ptr,
             col_idx,
             values,
@@ -355,10 +365,12 @@ impl PetscSystem {
         })
     }
 
-    /// Local CSR values (`values[k]` for the entry `col_idx[k]` of its row),
-    /// to be filled before [`Self::solve`].
-    pub fn values_mut(&mut self) -> &mut [f64] {
-        &mut self.values
+    /// The local matrix's values, from those of its lower triangle (in the
+    /// order of the pattern given to [`Self::new`]), before [`Self::solve`].
+    pub fn set_values(&mut self, lower: &[f64]) {
+        for (v, &k) in self.values.iter_mut().zip(&self.source) {
+            *v = lower[k as usize];
+        }
     }
 
     /// Solve with the local right-hand side `rhs` (local rows; the global

@@ -36,6 +36,17 @@ impl CsrView<'_> {
     }
 }
 
+/// The lower triangle of a symmetric `n`×`n` matrix by columns, borrowed
+/// for one solve: column `j` holds the rows `row_idx[col_ptr[j]..col_ptr[j + 1]]`
+/// (sorted, each ≥ j), with values at the same positions of `values`.
+#[derive(Debug, Clone, Copy)]
+pub struct LowerCscView<'a> {
+    pub n: usize,
+    pub col_ptr: &'a [usize],
+    pub row_idx: &'a [u32],
+    pub values: &'a [f64],
+}
+
 /// A host's linear solver: solves A x = b for a symmetric matrix A.
 ///
 /// On entry `x` holds an initial guess (the previous increment's solution, or
@@ -67,6 +78,24 @@ pub trait SystemSolver: Send + Sync {
     /// (the report gives them per solve); by default it does not.
     fn solve_counted(&self, a: CsrView<'_>, rhs: &[f64], x: &mut [f64]) -> std::result::Result<Option<usize>, String> {
         self.solve(a, rhs, x).map(|()| None)
+    }
+    /// Whether the solver takes the matrix as its lower triangle
+    /// ([`Self::solve_lower`]) instead of the full CSR matrix of
+    /// [`Self::solve`], which is then never built (it costs 24 bytes per
+    /// entry of the matrix); by default it does not.
+    fn takes_lower_triangle(&self) -> bool {
+        false
+    }
+    /// [`Self::solve_counted`] with the matrix as its lower triangle, for a
+    /// solver whose [`Self::takes_lower_triangle`] is true.
+    fn solve_lower(
+        &self,
+        a: LowerCscView<'_>,
+        rhs: &[f64],
+        x: &mut [f64],
+    ) -> std::result::Result<Option<usize>, String> {
+        let _ = (a, rhs, x);
+        Err("this solver does not take the lower triangle".into())
     }
     /// The solver's name in the report (default "external").
     fn name(&self) -> &'static str {
@@ -170,7 +199,8 @@ impl FullCsrPattern {
 }
 
 /// [`LinearSolver`] over a host's [`SystemSolver`]: the CSR pattern is built
-/// once, the values are copied for each system.
+/// once, the values are copied for each system; for a host that takes the
+/// lower triangle, neither.
 pub struct ExternalAdapter {
     host: ExternalSolver,
     csr: FullCsrPattern,
@@ -179,6 +209,10 @@ pub struct ExternalAdapter {
 
 impl ExternalAdapter {
     pub fn new(host: ExternalSolver, pattern: &SymmetricCsc) -> ExternalAdapter {
+        if host.0.takes_lower_triangle() {
+            let csr = FullCsrPattern { n: pattern.n, ..Default::default() };
+            return ExternalAdapter { host, csr, values: Vec::new() };
+        }
         let csr = FullCsrPattern::from_lower_csc(pattern);
         let values = vec![0.0; csr.col_idx.len()];
         ExternalAdapter { host, csr, values }
@@ -202,9 +236,16 @@ impl LinearSolver for ExternalAdapter {
                 ),
             ));
         }
-        self.csr.values_into(values, &mut self.values);
-        let a = CsrView { n: self.csr.n, row_ptr: &self.csr.row_ptr, col_idx: &self.csr.col_idx, values: &self.values };
-        let iterations = self.host.0.solve_counted(a, rhs, x).map_err(|m| {
+        let iterations = if self.host.0.takes_lower_triangle() {
+            let a = LowerCscView { n: pattern.n, col_ptr: &pattern.col_ptr, row_idx: &pattern.row_idx, values };
+            self.host.0.solve_lower(a, rhs, x)
+        } else {
+            self.csr.values_into(values, &mut self.values);
+            let a =
+                CsrView { n: self.csr.n, row_ptr: &self.csr.row_ptr, col_idx: &self.csr.col_idx, values: &self.values };
+            self.host.0.solve_counted(a, rhs, x)
+        };
+        let iterations = iterations.map_err(|m| {
             Error::solver(SolverFailure::External, format!("the external linear solver returned an error: {m}"))
         })?;
         if let Some(i) = x.iter().position(|v| !v.is_finite()) {

@@ -23,7 +23,7 @@ pub(crate) mod metis;
 pub use crate::sparse::{SparseRows, SymmetricCsc};
 pub use cholesky::{nested_dissection, node_block_size, DirectOrdering, SparseCholesky};
 pub use direct::DirectSolver;
-pub use external::{CsrView, ExternalAdapter, ExternalSolver, FullCsrPattern, SystemSolver};
+pub use external::{CsrView, ExternalAdapter, ExternalSolver, FullCsrPattern, LowerCscView, SystemSolver};
 pub use iterative::{IterativeParams, IterativeSolver, FALLBACK_DIRECT_MAX_DOFS};
 pub use lu::try_lu_solve_in_place;
 pub use pcg::{PcgFailure, PcgParams};
