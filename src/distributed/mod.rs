@@ -757,6 +757,6 @@ impl SystemSolver for PetscSolver {
     }
 
     fn name(&self) -> &'static str {
-        "petsc-cg-gamg"
+        "petsc-cg-pmg"
     }
 }

@@ -141,7 +141,7 @@ def test_distributed_run_gives_the_serial_mesh(cases, case, order, optimize, tmp
         assert r.returncode == 0, f"np {n}:\n{r.stderr}"
         m = json.loads((tmp_path / "m.json").read_text())
         assert m["ranks"] == n
-        assert m["linear_solver"] == "petsc-cg-gamg"
+        assert m["linear_solver"] == "petsc-cg-pmg"
         assert all(i > 0 for i in m["solver_iterations"]), m["solver_iterations"]
         assert m["cells"] == s["cells"] and m["nodes"] == s["nodes"]
         assert m["invalid_elements"] == s["invalid_elements"] == 0
