@@ -591,6 +591,39 @@ extern "C" {
 HocStatus hoc_mesh_create(int dim, size_t n_vertices, const double *coords, size_t n_cells, const int64_t *cells, HocMesh **out);
 
 /**
+ * Create a handle for this process's share of a mesh spread over the
+ * processes of an MPI communicator. Collective: every process of `comm`
+ * calls it with its own cells; all succeed, or all fail with the first
+ * failing process's status and message. Needs a library built with MPI
+ * (the `mpi` feature; otherwise HOC_ERROR_INVALID_ARGUMENT) and MPI
+ * initialised with MPI_Init_thread at MPI_THREAD_SERIALIZED or above.
+ *
+ * A process gives the cells it holds, and every vertex they use (its own
+ * and its ghosts), each with its global id: a vertex several processes
+ * give has one id and the same coordinates everywhere. Then, as for
+ * hoc_mesh_create, each process tags the boundary facets and feature edges
+ * of its own cells and sets its own projector, which is asked only about
+ * entities its facets or edges carry. Settings must be the same on every
+ * process (a run checks). hoc_mesh_run_increments is then collective, and
+ * the queries give this process's share of the curved mesh: its cells
+ * (with the cells the repair made from them), their nodes numbered
+ * locally with its vertices first in its order (hoc_mesh_get_global_nodes
+ * gives each node's global index and owner), and the whole mesh's figures
+ * (hoc_mesh_quality, except n_cells, the share's).
+ *
+ * @param[in] comm the communicator as a Fortran handle: MPI_Comm_c2f(comm) in C, the integer in Fortran
+ * @param[in] dim 2 or 3
+ * @param[in] n_vertices number of this process's vertices (at most 2^32 − 1)
+ * @param[in] coords `n_vertices * dim` interleaved coordinates
+ * @param[in] global_ids `n_vertices` distinct ids (≥ 0) of the vertices in the whole mesh
+ * @param[in] n_cells number of this process's cells (at least 1)
+ * @param[in] cells `n_cells * (dim + 1)` 0-based indices of this process's vertices
+ * @param[out] out the new handle (set to NULL on failure)
+ * @return HOC_OK, HOC_ERROR_NULL_POINTER, HOC_ERROR_INVALID_ARGUMENT or HOC_ERROR_INVALID_MESH
+ */
+HocStatus hoc_mesh_create_distributed(int comm, int dim, size_t n_vertices, const double *coords, const int64_t *global_ids, size_t n_cells, const int64_t *cells, HocMesh **out);
+
+/**
  * Destroy a handle and set `*mesh` to NULL. NULL and `*mesh == NULL` are fine.
  *
  * @param[in,out] mesh address of the handle
@@ -1032,6 +1065,22 @@ HocStatus hoc_mesh_cell_count(const HocMesh *mesh, size_t *n_cells, size_t *node
  * @return HOC_OK, HOC_ERROR_NULL_POINTER or HOC_ERROR_BUFFER_SIZE
  */
 HocStatus hoc_mesh_get_input_cells(const HocMesh *mesh, size_t n_cells, int64_t *input_cells);
+
+/**
+ * For each node of the current mesh, its index in the whole mesh and its
+ * owner, the lowest MPI process whose share holds it. For a handle of
+ * hoc_mesh_create: its own index, owner 0. For a share of a distributed
+ * mesh (hoc_mesh_create_distributed): after a successful run, the index
+ * in the whole curved mesh, the same on every process that holds the
+ * node; before, HOC_ERROR_INVALID_ARGUMENT.
+ *
+ * @param[in] mesh the handle
+ * @param[in] n_nodes must equal hoc_mesh_node_count
+ * @param[out] global_ids NULL, or `n_nodes` indices
+ * @param[out] owners NULL, or `n_nodes` ranks
+ * @return HOC_OK, HOC_ERROR_NULL_POINTER, HOC_ERROR_INVALID_ARGUMENT or HOC_ERROR_BUFFER_SIZE
+ */
+HocStatus hoc_mesh_get_global_nodes(const HocMesh *mesh, size_t n_nodes, int64_t *global_ids, int *owners);
 
 /**
  * Node coordinates of the current mesh (`n_nodes * dim` doubles) for

@@ -60,6 +60,23 @@ pub struct Session {
     cell_quality: Vec<ElementQuality>,
     quality: MeshQuality,
     report: Option<CurveReport>,
+    /// When this session is one process's share of a mesh spread over the
+    /// processes of an MPI run: the communicator and global ids.
+    partition: Option<Partition>,
+}
+
+/// One process's share of a mesh spread over the processes of an MPI run
+/// (the `mpi` feature's [`crate::distributed::partitioned`]): plain data,
+/// so the session itself does no communication.
+#[derive(Debug, Clone)]
+pub struct Partition {
+    /// The host's communicator, as its Fortran handle (`MPI_Comm_c2f`).
+    pub comm: i32,
+    /// The host's global id of each vertex of the session's input mesh.
+    pub global_vertex: Vec<u64>,
+    /// After a successful run, for each node of the curved share: its index
+    /// in the whole curved mesh, and the lowest process holding it (its owner).
+    pub nodes: Option<(Vec<u64>, Vec<i32>)>,
 }
 
 impl Session {
@@ -85,7 +102,107 @@ impl Session {
             cell_quality,
             quality,
             report: None,
+            partition: None,
         })
+    }
+
+    /// A session on one process's share of a distributed mesh
+    /// ([`Partition`]); `global_vertex` has one id per vertex of `linear`.
+    pub fn try_new_partition(linear: LinearMesh, comm: i32, global_vertex: Vec<u64>) -> Result<Session> {
+        if global_vertex.len() != linear.n_vertices() {
+            return Err(Error::InvalidInput(format!(
+                "{} global ids for {} vertices",
+                global_vertex.len(),
+                linear.n_vertices()
+            )));
+        }
+        let mut seen = global_vertex.clone();
+        seen.sort_unstable();
+        if let Some(w) = seen.windows(2).find(|w| w[0] == w[1]) {
+            return Err(Error::InvalidInput(format!("global id {} is given to two vertices", w[0])));
+        }
+        let mut session = Session::try_new(linear)?;
+        session.partition = Some(Partition { comm, global_vertex, nodes: None });
+        Ok(session)
+    }
+
+    /// The share of a distributed mesh this session holds, if it is one.
+    pub fn partition(&self) -> Option<&Partition> {
+        self.partition.as_ref()
+    }
+
+    /// The validated, oriented mesh the host gave, with its tags.
+    pub fn input(&self) -> &LinearMesh {
+        &self.input
+    }
+
+    /// Facets and feature edges held straight: (entity dimension, tag).
+    pub fn straight_tags(&self) -> &[(usize, i32)] {
+        &self.straight_tags
+    }
+
+    /// Whether a projector is set.
+    pub fn has_projector(&self) -> bool {
+        self.projector.is_some()
+    }
+
+    /// Whether the host's linear solver is set.
+    pub fn has_external_solver(&self) -> bool {
+        self.external_solver.is_some()
+    }
+
+    /// The worker threads asked for (0 = one per core).
+    pub fn threads(&self) -> usize {
+        self.threads
+    }
+
+    /// Take the projector and the progress callback out (to lend them to
+    /// another session); [`Session::restore_callbacks`] puts them back.
+    pub fn take_callbacks(&mut self) -> (Option<Box<dyn Projector + Send>>, Option<ProgressFn>) {
+        (self.projector.take(), self.progress.take())
+    }
+
+    pub fn restore_callbacks(&mut self, callbacks: (Option<Box<dyn Projector + Send>>, Option<ProgressFn>)) {
+        (self.projector, self.progress) = callbacks;
+    }
+
+    /// Run `f` on this session's worker threads.
+    pub fn install<R: Send>(&mut self, f: impl FnOnce(Option<&(dyn Projector + Send)>) -> R + Send) -> Result<R> {
+        self.pool()?;
+        let (pool, projector) = (self.pool.as_ref().expect("pool was just built"), self.projector.as_deref());
+        Ok(pool.install(|| f(projector)))
+    }
+
+    fn pool(&mut self) -> Result<&rayon::ThreadPool> {
+        if self.pool.is_none() {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(self.threads)
+                .thread_name(|i| format!("hocurve-{i}"))
+                .build()
+                .map_err(|e| Error::InvalidInput(format!("cannot start {} threads: {e}", self.threads)))?;
+            self.pool = Some(pool);
+        }
+        Ok(self.pool.as_ref().expect("pool was just built"))
+    }
+
+    /// Make `mesh` the current mesh, as the result of a run made elsewhere
+    /// (a distributed run: this process's share of the curved mesh), with
+    /// its cells' quality, the whole run's figures and report, and the
+    /// share's global node ids and owners.
+    pub fn adopt(
+        &mut self,
+        mesh: HighOrderMesh,
+        cell_quality: Vec<ElementQuality>,
+        report: CurveReport,
+        nodes: (Vec<u64>, Vec<i32>),
+    ) {
+        self.mesh = mesh;
+        self.cell_quality = cell_quality;
+        self.quality = report.quality.clone();
+        self.report = Some(report);
+        if let Some(p) = &mut self.partition {
+            p.nodes = Some(nodes);
+        }
     }
 
     pub fn dim(&self) -> usize {
@@ -140,6 +257,9 @@ impl Session {
         self.cell_quality = cq;
         self.quality = q;
         self.report = None;
+        if let Some(p) = &mut self.partition {
+            p.nodes = None;
+        }
         Ok(())
     }
 
@@ -338,14 +458,7 @@ impl Session {
         if has_tags && self.projector.is_none() {
             return Err(Error::InvalidInput("boundary facets are tagged but no projector is set".into()));
         }
-        if self.pool.is_none() {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(self.threads)
-                .thread_name(|i| format!("hocurve-{i}"))
-                .build()
-                .map_err(|e| Error::InvalidInput(format!("cannot start {} threads: {e}", self.threads)))?;
-            self.pool = Some(pool);
-        }
+        self.pool()?;
         let none = NoProjector;
         let projector: &dyn Projector = match &self.projector {
             Some(p) => p.as_ref(),

@@ -18,6 +18,7 @@
 //! processes, while the mesh itself (about 160 bytes per unknown, measured)
 //! stays whole on rank 0.
 
+pub mod partitioned;
 pub mod petsc;
 
 use std::sync::{Arc, Mutex};
@@ -29,6 +30,7 @@ use crate::assembly::{DofMap, LinearElasticKernel};
 use crate::curve::{
     solve_increments_from, Collective, ElasticBackend, IncrementsReport, Parallel, Stage, Stepping, Timings,
 };
+use crate::geometry::Projector;
 use crate::material::LinearElastic;
 use crate::mesh::{HighOrderMesh, NodeConstraint};
 use crate::reference::{NodeSet, NodeSpacing, Simplex};
@@ -43,9 +45,11 @@ const RTOL: f64 = 1e-5;
 /// Integers before the arrays of a part's message ([`Part::encode`]).
 const HEAD: usize = 17;
 
-/// Commands rank 0 broadcasts to the others.
-const STOP: u8 = 0;
-const SOLVE: u8 = 1;
+/// Commands rank 0 broadcasts to the others: the command, and the rank
+/// that is to answer a projection request.
+const STOP: u64 = 0;
+const SOLVE: u64 = 1;
+const PROJECT: u64 = 2;
 
 /// `MPI_COMM_WORLD`, shared by the objects of one run. MPI is initialised
 /// with one thread: every call comes from the thread that runs the curving.
@@ -77,20 +81,57 @@ impl Lead {
 
     /// Let the other ranks' [`serve`] return.
     pub fn stop(&self) {
-        let mut cmd = STOP;
-        self.world.0.process_at_rank(0).broadcast_into(&mut cmd);
+        self.command(STOP, 0);
+    }
+
+    fn command(&self, cmd: u64, rank: usize) {
+        let mut cmd = [cmd, rank as u64];
+        self.world.0.process_at_rank(0).broadcast_into(&mut cmd[..]);
+    }
+
+    /// Project `points` onto entity (`entity_dim`, `tag`) with the projector
+    /// of process `rank` (> 0), which is in [`serve`].
+    pub fn project_on(
+        &self,
+        rank: usize,
+        entity_dim: usize,
+        tag: i32,
+        points: &[[f64; 3]],
+        out: &mut [[f64; 3]],
+    ) -> std::result::Result<(), String> {
+        self.command(PROJECT, rank);
+        let to = self.world.0.process_at_rank(rank as i32);
+        to.send(&[entity_dim as u64, tag as i64 as u64][..]);
+        to.send(points.as_flattened());
+        let (reply, _) = to.receive_vec::<u8>();
+        let (flat, _) = to.receive_vec::<f64>();
+        if reply.first() != Some(&0) {
+            return Err(format!("{} (on process {rank})", String::from_utf8_lossy(reply.get(1..).unwrap_or(&[]))));
+        }
+        if flat.len() != out.len() * 3 {
+            return Err(format!("process {rank} sent {} coordinates for {} points", flat.len(), out.len()));
+        }
+        out.as_flattened_mut().copy_from_slice(&flat);
+        Ok(())
     }
 }
 
 /// The other ranks' side: take part in every elastic stage rank 0 starts,
-/// until it calls [`Lead::stop`].
-pub fn serve(world: SimpleCommunicator) -> Result<()> {
+/// and answer its projection requests with `projector` (see
+/// [`Lead::project_on`]), until it calls [`Lead::stop`].
+pub fn serve(world: SimpleCommunicator, projector: Option<&dyn Projector>) -> Result<()> {
     let world = World(world);
     loop {
-        let mut cmd = 0u8;
-        world.0.process_at_rank(0).broadcast_into(&mut cmd);
-        if cmd != SOLVE {
-            return Ok(());
+        let mut cmd = [0u64; 2];
+        world.0.process_at_rank(0).broadcast_into(&mut cmd[..]);
+        match cmd[0] {
+            SOLVE => {}
+            PROJECT if cmd[1] == world.0.rank() as u64 => {
+                answer_projection(&world, projector);
+                continue;
+            }
+            PROJECT => continue,
+            _ => return Ok(()),
         }
         let (ints, floats) = receive(&world);
         let part = match Part::decode(&ints, &floats) {
@@ -107,6 +148,25 @@ pub fn serve(world: SimpleCommunicator) -> Result<()> {
             send_back(&world, &part, &mesh, report.first_rate.as_deref());
         }
     }
+}
+
+/// Project the points rank 0 sends ([`Lead::project_on`]) and send back a
+/// status (0 = done), the points, and the error message if any.
+fn answer_projection(world: &World, projector: Option<&dyn Projector>) {
+    let (ints, floats) = receive(world);
+    let points: Vec<[f64; 3]> = floats.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect();
+    let mut out = vec![[f64::NAN; 3]; points.len()];
+    let result = match (projector, ints.as_slice()) {
+        (Some(p), &[entity_dim, tag]) => p.project(entity_dim as usize, tag as i64 as i32, &points, &mut out),
+        (None, _) => Err("this process has no projector".into()),
+        _ => Err("a malformed projection request".into()),
+    };
+    let root = world.0.process_at_rank(0);
+    // A status byte first: an empty buffer's address is OpenMPI's MPI_IN_PLACE.
+    let mut reply = vec![result.is_err() as u8];
+    reply.extend(result.err().unwrap_or_default().bytes());
+    root.send(&reply[..]);
+    root.send(out.as_flattened());
 }
 
 /// One process's share of an elastic stage.
@@ -437,8 +497,7 @@ impl ElasticBackend for Lead {
             .filter(|r| r.len() == gdofs.n_free)
             .map(|r| (0..mesh.coords.len()).map(|d| gdofs.free_index(d).map_or(f64::NAN, |f| r[f])).collect());
         let parts = split(mesh, &gdofs, size)?;
-        let mut cmd = SOLVE;
-        world.0.process_at_rank(0).broadcast_into(&mut cmd);
+        self.command(SOLVE, 0);
         let mut mine = None;
         for (r, layout) in parts.into_iter().enumerate() {
             let part = layout.into_part(mesh, material, stepping, ubar, rate_per_dof.as_deref());
@@ -685,7 +744,10 @@ impl MpiCollective {
         } else {
             vec![0u8; len as usize]
         };
-        root.broadcast_into(&mut bytes[..]);
+        // An empty buffer's address is 0x1, OpenMPI's MPI_IN_PLACE: never send one.
+        if len > 0 {
+            root.broadcast_into(&mut bytes[..]);
+        }
         Some((best, String::from_utf8_lossy(&bytes).into_owned()))
     }
 }

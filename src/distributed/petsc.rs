@@ -43,6 +43,8 @@ const PC_MG_GALERKIN_NONE: c_int = 3;
 
 #[link(name = "petsc_real")]
 extern "C" {
+    /// The communicator PETSc initialises on (MPI_COMM_WORLD unless set before).
+    static mut PETSC_COMM_WORLD: MPI_Comm;
     fn PetscInitializeNoArguments() -> PetscErrorCode;
     fn PetscInitialized(isinitialized: *mut c_int) -> PetscErrorCode;
     fn PetscFinalize() -> PetscErrorCode;
@@ -163,11 +165,21 @@ fn check(code: PetscErrorCode, call: &str) -> Result<(), String> {
 /// Start PETSc on the already initialised MPI (`PETSC_COMM_WORLD` is
 /// `MPI_COMM_WORLD`), unless it runs already.
 pub fn initialize() -> Result<(), String> {
+    initialize_on(None)
+}
+
+/// Initialise PETSc unless it is: on `comm` (collective over it) when
+/// given, else on `MPI_COMM_WORLD`.
+pub fn initialize_on(comm: Option<MPI_Comm>) -> Result<(), String> {
     let mut done = 0;
-    // SAFETY: plain calls with a valid out-pointer.
+    // SAFETY: plain calls with a valid out-pointer; PETSC_COMM_WORLD may be
+    // set before PetscInitialize, and is read by nothing else until then.
     unsafe {
         check(PetscInitialized(&mut done), "PetscInitialized")?;
         if done == 0 {
+            if let Some(comm) = comm {
+                PETSC_COMM_WORLD = comm;
+            }
             check(PetscInitializeNoArguments(), "PetscInitializeNoArguments")?;
         }
     }

@@ -578,27 +578,128 @@ pub unsafe extern "C" fn hoc_mesh_create(
     *out = std::ptr::null_mut();
     let mut created = None;
     let status = guard(std::ptr::null(), || {
-        if dim != 2 && dim != 3 {
-            return Err(arg(format!("dim must be 2 or 3, got {dim}")));
-        }
-        let d = dim as usize;
-        if n_cells == 0 {
-            return Err((HOC_ERROR_INVALID_MESH, "the mesh has no cells".into()));
-        }
-        let n_vertices = checked_count(n_vertices, "n_vertices")?;
-        let n_cells = checked_count(n_cells, "n_cells")?;
-        let coords = slice(coords, checked_mul(n_vertices, d, "coords")?, "coords")?.to_vec();
-        let cells = indices(slice(cells, checked_mul(n_cells, d + 1, "cells")?, "cells")?, "cells")?;
-        let linear = LinearMesh { dim: d, coords, cells, ..Default::default() };
-        let session = Session::try_new(linear).map_err(mesh_err)?;
-        let state = HandleState { session, last_error: CString::default() };
-        created = Some(Box::new(HocMesh { busy: AtomicBool::new(false), state: UnsafeCell::new(state) }));
+        let linear = linear_mesh(dim, n_vertices, coords, n_cells, cells)?;
+        created = Some(Session::try_new(linear).map_err(mesh_err)?);
         Ok(())
     });
-    if let Some(h) = created {
-        *out = Box::into_raw(h);
+    if let Some(session) = created {
+        *out = new_handle(session);
     }
     status
+}
+
+/// The linear mesh of hoc_mesh_create's arguments, checked.
+unsafe fn linear_mesh(
+    dim: c_int,
+    n_vertices: usize,
+    coords: *const f64,
+    n_cells: usize,
+    cells: *const i64,
+) -> std::result::Result<LinearMesh, (HocStatus, String)> {
+    if dim != 2 && dim != 3 {
+        return Err(arg(format!("dim must be 2 or 3, got {dim}")));
+    }
+    let d = dim as usize;
+    if n_cells == 0 {
+        return Err((HOC_ERROR_INVALID_MESH, "the mesh has no cells".into()));
+    }
+    let n_vertices = checked_count(n_vertices, "n_vertices")?;
+    let n_cells = checked_count(n_cells, "n_cells")?;
+    let coords = slice(coords, checked_mul(n_vertices, d, "coords")?, "coords")?.to_vec();
+    let cells = indices(slice(cells, checked_mul(n_cells, d + 1, "cells")?, "cells")?, "cells")?;
+    Ok(LinearMesh { dim: d, coords, cells, ..Default::default() })
+}
+
+fn new_handle(session: Session) -> *mut HocMesh {
+    let state = HandleState { session, last_error: CString::default() };
+    Box::into_raw(Box::new(HocMesh { busy: AtomicBool::new(false), state: UnsafeCell::new(state) }))
+}
+
+/// Create a handle for this process's share of a mesh spread over the
+/// processes of an MPI communicator. Collective: every process of `comm`
+/// calls it with its own cells; all succeed, or all fail with the first
+/// failing process's status and message. Needs a library built with MPI
+/// (the `mpi` feature; otherwise HOC_ERROR_INVALID_ARGUMENT) and MPI
+/// initialised with MPI_Init_thread at MPI_THREAD_SERIALIZED or above.
+///
+/// A process gives the cells it holds, and every vertex they use (its own
+/// and its ghosts), each with its global id: a vertex several processes
+/// give has one id and the same coordinates everywhere. Then, as for
+/// hoc_mesh_create, each process tags the boundary facets and feature edges
+/// of its own cells and sets its own projector, which is asked only about
+/// entities its facets or edges carry. Settings must be the same on every
+/// process (a run checks). hoc_mesh_run_increments is then collective, and
+/// the queries give this process's share of the curved mesh: its cells
+/// (with the cells the repair made from them), their nodes numbered
+/// locally with its vertices first in its order (hoc_mesh_get_global_nodes
+/// gives each node's global index and owner), and the whole mesh's figures
+/// (hoc_mesh_quality, except n_cells, the share's).
+///
+/// @param[in] comm the communicator as a Fortran handle: MPI_Comm_c2f(comm) in C, the integer in Fortran
+/// @param[in] dim 2 or 3
+/// @param[in] n_vertices number of this process's vertices (at most 2^32 − 1)
+/// @param[in] coords `n_vertices * dim` interleaved coordinates
+/// @param[in] global_ids `n_vertices` distinct ids (≥ 0) of the vertices in the whole mesh
+/// @param[in] n_cells number of this process's cells (at least 1)
+/// @param[in] cells `n_cells * (dim + 1)` 0-based indices of this process's vertices
+/// @param[out] out the new handle (set to NULL on failure)
+/// @return HOC_OK, HOC_ERROR_NULL_POINTER, HOC_ERROR_INVALID_ARGUMENT or HOC_ERROR_INVALID_MESH
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn hoc_mesh_create_distributed(
+    comm: c_int,
+    dim: c_int,
+    n_vertices: usize,
+    coords: *const f64,
+    global_ids: *const i64,
+    n_cells: usize,
+    cells: *const i64,
+    out: *mut *mut HocMesh,
+) -> HocStatus {
+    if out.is_null() {
+        return guard(std::ptr::null(), || Err(null("out")));
+    }
+    *out = std::ptr::null_mut();
+    let mut created = None;
+    let status = guard(std::ptr::null(), || {
+        let local = (|| {
+            let linear = linear_mesh(dim, n_vertices, coords, n_cells, cells)?;
+            let ids = slice(global_ids, checked_count(n_vertices, "n_vertices")?, "global_ids")?;
+            let ids = indices(ids, "global_ids")?.into_iter().map(|g| g as u64).collect();
+            Session::try_new_partition(linear, comm, ids).map_err(mesh_err)
+        })();
+        created = Some(create_distributed(comm, local)?);
+        Ok(())
+    });
+    if let Some(session) = created {
+        *out = new_handle(session);
+    }
+    status
+}
+
+/// Every process's outcome of making its share, agreed: all fail with the
+/// lowest failing process's status and message, if any fails.
+#[cfg(feature = "mpi")]
+fn create_distributed(
+    comm: c_int,
+    local: std::result::Result<Session, (HocStatus, String)>,
+) -> std::result::Result<Session, (HocStatus, String)> {
+    let failure = local.as_ref().err().map(|(status, message)| format!("{status} {message}"));
+    match crate::distributed::partitioned::first_failure(comm, failure).map_err(err)? {
+        None => local,
+        Some(f) => Err(f
+            .split_once(' ')
+            .and_then(|(s, m)| Some((s.parse().ok()?, m.to_string())))
+            .unwrap_or((HOC_ERROR_INVALID_MESH, f))),
+    }
+}
+
+#[cfg(not(feature = "mpi"))]
+fn create_distributed(
+    _: c_int,
+    _: std::result::Result<Session, (HocStatus, String)>,
+) -> std::result::Result<Session, (HocStatus, String)> {
+    Err(arg("this libhocurve was built without MPI: build it with the `mpi` cargo feature"))
 }
 
 /// Destroy a handle and set `*mesh` to NULL. NULL and `*mesh == NULL` are fine.
@@ -1247,8 +1348,21 @@ pub unsafe extern "C" fn hoc_mesh_run_increments(mesh: *mut HocMesh, increments:
             .ok()
             .filter(|&n| n >= 1)
             .ok_or_else(|| arg(format!("increments must be >= 1, got {increments}")))?;
+        if h.session.partition().is_some() {
+            return run_distributed(&mut h.session, n).map_err(err);
+        }
         h.session.run(n).map_err(err)
     })
+}
+
+#[cfg(feature = "mpi")]
+fn run_distributed(session: &mut Session, increments: usize) -> crate::Result<()> {
+    crate::distributed::partitioned::run(session, increments)
+}
+
+#[cfg(not(feature = "mpi"))]
+fn run_distributed(_: &mut Session, _: usize) -> crate::Result<()> {
+    unreachable!("a distributed handle needs the mpi feature")
 }
 
 /// Quality of the current mesh.
@@ -1668,6 +1782,50 @@ fn node_ordering(ordering: HocNodeOrdering) -> std::result::Result<NodeOrdering,
         HOC_ORDERING_VTK => Ok(NodeOrdering::Vtk),
         o => Err(arg(format!("unknown node ordering {o}"))),
     }
+}
+
+/// For each node of the current mesh, its index in the whole mesh and its
+/// owner, the lowest MPI process whose share holds it. For a handle of
+/// hoc_mesh_create: its own index, owner 0. For a share of a distributed
+/// mesh (hoc_mesh_create_distributed): after a successful run, the index
+/// in the whole curved mesh, the same on every process that holds the
+/// node; before, HOC_ERROR_INVALID_ARGUMENT.
+///
+/// @param[in] mesh the handle
+/// @param[in] n_nodes must equal hoc_mesh_node_count
+/// @param[out] global_ids NULL, or `n_nodes` indices
+/// @param[out] owners NULL, or `n_nodes` ranks
+/// @return HOC_OK, HOC_ERROR_NULL_POINTER, HOC_ERROR_INVALID_ARGUMENT or HOC_ERROR_BUFFER_SIZE
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_get_global_nodes(
+    mesh: *const HocMesh,
+    n_nodes: usize,
+    global_ids: *mut i64,
+    owners: *mut c_int,
+) -> HocStatus {
+    guard(mesh, || {
+        let h = handle(mesh)?;
+        let n = h.session.mesh().n_nodes();
+        if n_nodes != n {
+            return Err((HOC_ERROR_BUFFER_SIZE, format!("n_nodes = {n_nodes}, but the mesh has {n}")));
+        }
+        let (ids, ranks): (Cow<'_, [u64]>, Cow<'_, [i32]>) = match h.session.partition() {
+            None => (Cow::Owned((0..n as u64).collect()), Cow::Owned(vec![0; n])),
+            Some(p) => match &p.nodes {
+                Some((ids, ranks)) => (Cow::Borrowed(ids), Cow::Borrowed(ranks)),
+                None => return Err(arg("the global node ids of a distributed mesh are known after a run")),
+            },
+        };
+        if !global_ids.is_null() {
+            for (o, &g) in std::slice::from_raw_parts_mut(global_ids, n).iter_mut().zip(ids.iter()) {
+                *o = g as i64;
+            }
+        }
+        if !owners.is_null() {
+            std::slice::from_raw_parts_mut(owners, n).copy_from_slice(&ranks);
+        }
+        Ok(())
+    })
 }
 
 /// Node coordinates of the current mesh (`n_nodes * dim` doubles) for

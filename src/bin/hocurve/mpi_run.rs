@@ -23,7 +23,7 @@ pub fn main(args: &[String]) -> ExitCode {
     }
     let rank = world.rank();
     let result = if rank != 0 {
-        serve(world)
+        serve(world, None)
     } else {
         let lead = Arc::new(Lead::new(world));
         let result = match args.first().map(String::as_str) {
