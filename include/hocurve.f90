@@ -179,6 +179,22 @@ module hocurve
       integer(c_int) :: status
     end function hoc_mesh_create
 
+    ! This process's share of a mesh spread over the MPI communicator comm
+    ! (the integer handle of `use mpi`; comm%MPI_VAL with mpi_f08). Collective;
+    ! needs a library built with MPI and MPI_Init_thread at MPI_THREAD_SERIALIZED or above.
+    function hoc_mesh_create_distributed(comm, dim, n_vertices, coords, global_ids, n_cells, cells, mesh) &
+        bind(C, name="hoc_mesh_create_distributed") result(status)
+      import :: c_int, c_size_t, c_double, c_int64_t, c_ptr
+      integer(c_int), value :: comm, dim
+      integer(c_size_t), value :: n_vertices
+      real(c_double), intent(in) :: coords(*)
+      integer(c_int64_t), intent(in) :: global_ids(*)
+      integer(c_size_t), value :: n_cells
+      integer(c_int64_t), intent(in) :: cells(*)
+      type(c_ptr), intent(out) :: mesh
+      integer(c_int) :: status
+    end function hoc_mesh_create_distributed
+
     function hoc_mesh_destroy(mesh) bind(C, name="hoc_mesh_destroy") result(status)
       import :: c_int, c_ptr
       type(c_ptr), intent(inout) :: mesh
@@ -298,6 +314,16 @@ module hocurve
       integer(c_int64_t) :: input_cells(*)
       integer(c_int) :: status
     end function hoc_mesh_get_input_cells
+
+    function hoc_mesh_get_global_nodes(mesh, n_nodes, global_ids, owners) &
+        bind(C, name="hoc_mesh_get_global_nodes") result(status)
+      import :: c_int, c_ptr, c_size_t, c_int64_t
+      type(c_ptr), value :: mesh
+      integer(c_size_t), value :: n_nodes
+      integer(c_int64_t) :: global_ids(*)
+      integer(c_int) :: owners(*)
+      integer(c_int) :: status
+    end function hoc_mesh_get_global_nodes
 
     function hoc_mesh_set_order(mesh, order, spacing) bind(C, name="hoc_mesh_set_order") result(status)
       import :: c_int, c_ptr
@@ -532,10 +558,11 @@ module hocurve
     end function hoc_c_strlen
   end interface
 
-  public :: hoc_mesh_create, hoc_mesh_destroy, hoc_mesh_set_boundary, hoc_mesh_set_feature_edges, &
+  public :: hoc_mesh_create, hoc_mesh_create_distributed, hoc_mesh_destroy, &
+            hoc_mesh_set_boundary, hoc_mesh_set_feature_edges, &
             hoc_mesh_set_projector, hoc_mesh_set_progress, hoc_mesh_set_linear_solver, &
             hoc_mesh_set_threads, hoc_mesh_set_remove_caps, hoc_mesh_set_retry, hoc_mesh_retry, &
-            hoc_mesh_set_repair, hoc_mesh_get_input_cells, &
+            hoc_mesh_set_repair, hoc_mesh_get_input_cells, hoc_mesh_get_global_nodes, &
             hoc_mesh_set_order, hoc_mesh_repair_summary, &
             hoc_mesh_set_material, hoc_mesh_set_formulation, hoc_mesh_set_newton, hoc_mesh_set_fibres, &
             hoc_mesh_set_adaptive_stepping, hoc_mesh_set_static_condensation, hoc_mesh_run_increments, &

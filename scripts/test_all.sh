@@ -11,7 +11,9 @@
 #                                 ctest, then the same under valgrind and under
 #                                 AddressSanitizer + UBSan + LeakSanitizer)
 #   6. the distributed build (`--features mpi`, in target/mpi) and
-#      pytest -q tests/mpi: mpirun -np 1..4 hocurve-mpi against hocurve
+#      pytest -q tests/mpi: mpirun -np 1..4 hocurve-mpi against hocurve, and
+#      C and Fortran programs giving each process its share of a mesh
+#      (hoc_mesh_create_distributed) against hocurve
 #   7. scripts/fuzz.sh           (cargo-fuzz: the .msh reader and the C ABI call
 #                                 sequence, HOCURVE_FUZZ_SECONDS each, default
 #                                 60; HOCURVE_SKIP_FUZZ=1 skips it)
@@ -72,7 +74,7 @@ c_rc=$?
 
 step "distributed build and tests: cargo build --release --features mpi; pytest -q tests/mpi"
 # In a target directory of its own: the default build's library links no MPI.
-if CARGO_TARGET_DIR="$repo/target/mpi" cargo build --release --features mpi --bin hocurve-mpi; then
+if CARGO_TARGET_DIR="$repo/target/mpi" cargo build --release --features mpi; then
     "$venv/bin/python" -m pytest -q -p no:cacheprovider tests/mpi
     mpi_rc=$?
 else

@@ -553,9 +553,9 @@ fn constraint_code(c: NodeConstraint) -> [u64; 3] {
 }
 
 fn constraint_of(code: &[u64]) -> NodeConstraint {
-    match code {
-        &[2, dim, tag] => NodeConstraint::OnEntity { dim: dim as usize, tag: tag as i64 as i32 },
-        &[0, _, _] => NodeConstraint::Free,
+    match *code {
+        [2, dim, tag] => NodeConstraint::OnEntity { dim: dim as usize, tag: tag as i64 as i32 },
+        [0, _, _] => NodeConstraint::Free,
         _ => NodeConstraint::Fixed,
     }
 }

@@ -17,7 +17,9 @@
  *   the handle's last error message (a line, maybe empty)
  *   unchanged: 1 if the mesh after the run is the mesh before (on failure)
  * and after a successful run:
- *   n_nodes n_cells nodes_per_cell min_q3 n_invalid n_certified_invalid
+ *   n_nodes n_cells nodes_per_cell min_q3 n_invalid n_certified_invalid, and
+ *   (distributed.c only) increments taken, step backs, solves, fallbacks,
+ *   caps removed, whether the optimisation ran
  *   n_nodes lines: global node index, owner, position (the native node set:
  *                  a node's own, where gmsh's is evaluated cell by cell)
  *   n_cells lines: the host's global ids of the cell's vertices (-1 for a
@@ -153,8 +155,16 @@ int main(int argc, char **argv) {
     if (st == HOC_OK) {
         HocQuality q;
         hoc_mesh_quality(mesh, &q);
-        fprintf(o, "%zu %zu %zu %.17g %zu %zu\n", n_nodes, n_cells, npc, q.min_q3, q.n_invalid,
-                q.n_certified_invalid);
+        size_t taken, step_backs, solves, fallbacks;
+        HocRepair repair;
+        HocOptimization opt;
+        if (hoc_mesh_increment_count(mesh, &taken, &step_backs) != HOC_OK ||
+            hoc_mesh_solve_count(mesh, &solves, &fallbacks) != HOC_OK ||
+            hoc_mesh_repair_summary(mesh, &repair) != HOC_OK || hoc_mesh_optimization(mesh, &opt) != HOC_OK)
+            MPI_Abort(MPI_COMM_WORLD, 1);
+        fprintf(o, "%zu %zu %zu %.17g %zu %zu %zu %zu %zu %zu %zu %d\n", n_nodes, n_cells, npc, q.min_q3,
+                q.n_invalid, q.n_certified_invalid, taken, step_backs, solves, fallbacks, repair.removed_caps,
+                opt.ran);
         int64_t *global = must(malloc(sizeof(int64_t) * n_nodes));
         int *owner = must(malloc(sizeof(int) * n_nodes));
         int64_t *conn = must(malloc(sizeof(int64_t) * n_cells * npc));

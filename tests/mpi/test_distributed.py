@@ -42,20 +42,24 @@ CASES = {
 
 
 @pytest.fixture(scope="module")
-def program(tmp_path_factory):
-    mpicc = shutil.which("mpicc")
-    assert mpicc, "mpicc not found (Debian: libopenmpi-dev)"
+def programs(tmp_path_factory):
+    """distributed.c and distributed.f90 (with the hocurve module), linked with the library built with MPI."""
+    mpicc, mpif90 = shutil.which("mpicc"), shutil.which("mpif90")
+    assert mpicc and mpif90, "mpicc or mpif90 not found (Debian: libopenmpi-dev, gfortran)"
     assert (MPI_LIB / "libhocurve.so").is_file(), f"{MPI_LIB}/libhocurve.so: build with --features mpi"
     d = tmp_path_factory.mktemp("bin")
     # The library's file as its soname (libhocurve.so.MAJOR.MINOR) names it.
     soname = subprocess.run(["objdump", "-p", str(MPI_LIB / "libhocurve.so")], capture_output=True, text=True,
                             check=True).stdout.split("SONAME")[1].split()[0]
     (d / soname).symlink_to(MPI_LIB / "libhocurve.so")
-    exe = d / "distributed"
-    subprocess.run([mpicc, "-std=c99", "-Wall", "-Werror", "-O1", str(REPO / "tests" / "mpi" / "distributed.c"),
-                    "-I", str(REPO / "include"), str(MPI_LIB / "libhocurve.so"), f"-Wl,-rpath,{d}", "-lm",
-                    "-o", str(exe)], check=True)
-    return exe
+    link = [str(MPI_LIB / "libhocurve.so"), f"-Wl,-rpath,{d}", "-lm"]
+    here = REPO / "tests" / "mpi"
+    subprocess.run([mpicc, "-std=c99", "-Wall", "-Werror", "-O1", str(here / "distributed.c"), "-I",
+                    str(REPO / "include"), *link, "-o", str(d / "distributed")], check=True)
+    subprocess.run([mpif90, "-std=f2008", "-Wall", "-Werror",
+                    "-Wno-unused-dummy-argument", "-O1", "-J", str(d), str(REPO / "include" / "hocurve.f90"),
+                    str(here / "distributed.f90"), *link, "-o", str(d / "distributed_f")], check=True)
+    return {"c": d / "distributed", "fortran": d / "distributed_f"}
 
 
 def read_msh(path):
@@ -119,9 +123,10 @@ def run(program, d, dim, n, order, optimize, fail_rank=-1):
         lines = (d / f"out.{rank_}.txt").read_text().split("\n")
         out = {"status": int(lines[0]), "message": lines[1], "unchanged": lines[2] == "1"}
         if out["status"] == HOC_OK:
-            nn, nc, _, q3, inv, cinv = lines[3].split()
+            nn, nc, _, q3, inv, cinv, *report = lines[3].split()
             nn, nc = int(nn), int(nc)
-            out.update(min_q3=float(q3), invalid=int(inv), certified_invalid=int(cinv))
+            out.update(min_q3=float(q3), invalid=int(inv), certified_invalid=int(cinv),
+                       report=tuple(map(int, report)))
             out["nodes"] = [(int(v[0]), int(v[1]), tuple(map(float, v[2:]))) for v in
                             (l.split() for l in lines[4 : 4 + nn])]
             out["cells"] = []
@@ -157,7 +162,18 @@ def serial_cells(path, dim, input_nodes, facets):
 @pytest.mark.parametrize("optimize", ["off", "on"])
 @pytest.mark.parametrize("case", list(CASES))
 @pytest.mark.parametrize("order", [2, 4])
-def test_the_shares_together_are_the_serial_mesh(program, case, order, optimize, how, tmp_path):
+def test_the_shares_together_are_the_serial_mesh(programs, case, order, optimize, how, tmp_path):
+    against_serial(programs["c"], case, order, optimize, how, tmp_path)
+
+
+@pytest.mark.parametrize("case, order, optimize, how", [("sphere-caps", 2, "off", "shells"),
+                                                        ("plate-2d", 4, "on", "slabs")])
+def test_the_fortran_module_gives_the_same_shares(programs, case, order, optimize, how, tmp_path):
+    against_serial(programs["fortran"], case, order, optimize, how, tmp_path)
+
+
+def against_serial(program, case, order, optimize, how, tmp_path):
+    """Curve `case`'s shares (cut `how`) on 1, 2 and 3 processes with `program`; compare with the serial run."""
     name, tag, shape, spec = CASES[case]
     msh = REPO / "tests" / "data" / name
     dim, nodes, cells, facets = read_msh(msh)
@@ -172,12 +188,19 @@ def test_the_shares_together_are_the_serial_mesh(program, case, order, optimize,
         outs = run(program, tmp_path, dim, n, order, optimize)
         assert all(o["status"] == HOC_OK for o in outs), [o["message"] for o in outs]
         # The whole mesh's figures, the same everywhere.
-        for key in ("min_q3", "invalid", "certified_invalid"):
+        for key in ("min_q3", "invalid", "certified_invalid", "report"):
             assert len({o[key] for o in outs}) == 1, (key, [o[key] for o in outs])
         q = outs[0]
         assert q["invalid"] == q["certified_invalid"] == 0 == s["invalid_elements"]
         assert abs(q["min_q3"] - s["min_q3"]) < (1e-4 if optimize == "off" else 1e-2), (q["min_q3"], s["min_q3"])
         assert sum(len(o["cells"]) for o in outs) == s["cells"]
+        if q["report"]:
+            # The run's figures on every process, the serial run's (the solves' count aside:
+            # PETSc's, not the built-in solver's, decide nothing the counts depend on).
+            taken, backs, solves, fallbacks, caps, ran = q["report"]
+            assert (taken, backs, caps) == (len(s["load_fractions"]), len(s["step_backs"]), s["removed_caps"])
+            assert solves == len(s["solver_iterations"]) and fallbacks == 0
+            assert ran == int(s["optimization"]["ran"])
         # Global node indices: one position per index, every index held, the owner the lowest holder.
         position, holders, owners = {}, {}, {}
         for r, o in enumerate(outs):
@@ -198,13 +221,14 @@ def test_the_shares_together_are_the_serial_mesh(program, case, order, optimize,
 
 
 @pytest.mark.parametrize("case", list(CASES))
-def test_a_projector_failing_on_one_process_fails_the_run_alike_everywhere(program, case, tmp_path):
+@pytest.mark.parametrize("lang", ["c", "fortran"])
+def test_a_projector_failing_on_one_process_fails_the_run_alike_everywhere(programs, lang, case, tmp_path):
     name, tag, shape, _ = CASES[case]
     dim, nodes, cells, facets = read_msh(REPO / "tests" / "data" / name)
     for n, how in ((2, "shells"), (3, "slabs")):
         part = partition(dim, nodes, cells, n, how, shape)
         holder = write_shares(tmp_path, dim, nodes, cells, facets, part, n, tag, shape)
-        outs = run(program, tmp_path, dim, n, 3, "on", fail_rank=holder)
+        outs = run(programs[lang], tmp_path, dim, n, 3, "on", fail_rank=holder)
         assert all(o["status"] == HOC_ERROR_PROJECTION for o in outs), [o["status"] for o in outs]
         assert len({o["message"] for o in outs}) == 1, [o["message"] for o in outs]
         assert f"process {holder}" in outs[0]["message"] or holder == 0, outs[0]["message"]
