@@ -602,15 +602,8 @@ struct Layout {
 /// each node by the lowest rank among its cells', and number the system
 /// nodes for PETSc rank by rank.
 fn split(mesh: &HighOrderMesh, dofs: &DofMap, size: usize) -> Result<Vec<Layout>> {
-    let (dim, npc, nv) = (mesh.dim(), mesh.nodes_per_cell(), mesh.dim() + 1);
-    let nodes = NodeSet::new(mesh.simplex, mesh.order, mesh.spacing);
-    // The local positions of a cell's vertices (the nodes with one λ = 1).
-    let corners: Vec<usize> = (0..npc).filter(|&a| nodes.multi[a].contains(&mesh.order)).collect();
-    let mut vertices = Vec::with_capacity(mesh.n_cells() * nv);
-    for c in 0..mesh.n_cells() {
-        vertices.extend(corners.iter().map(|&a| mesh.cell(c)[a]));
-    }
-    let part = crate::solver::metis::try_part_cells(&vertices, nv, mesh.n_vertices, size)?;
+    let dim = mesh.dim();
+    let part = mesh.partition(size)?;
     let mut owner = vec![usize::MAX; mesh.n_nodes()];
     for c in 0..mesh.n_cells() {
         for &n in mesh.cell(c) {

@@ -218,58 +218,113 @@ pub fn write_msh(path: &Path, mesh: &CellMeshView) -> Result<()> {
 /// Writes an order-p simplex mesh as MSH 4.1 ASCII: one entity of dimension
 /// `dim` with tag 1 holding every node and cell, cells converted from
 /// `mesh.cell_multi`'s order to gmsh's.
-pub fn write_msh_to<W: Write>(mut w: W, mesh: &CellMeshView) -> Result<()> {
+pub fn write_msh_to<W: Write>(w: W, mesh: &CellMeshView) -> Result<()> {
+    write_msh_parts_to(w, mesh, None)
+}
+
+/// Writes a mesh split into parts in gmsh's partitioned MSH 4.1 format
+/// (atomically, see [`crate::io`]); see [`write_msh_parts_to`].
+pub fn write_msh_partitioned(path: &Path, mesh: &CellMeshView, part: &[usize], parts: usize) -> Result<()> {
+    write_atomically(path, |w| write_msh_parts_to(w, mesh, Some((part, parts))))
+}
+
+/// [`write_msh_to`], or with `partition` = (the part of each cell, the
+/// number of parts) gmsh's partitioned format: the model entity, and under
+/// `$PartitionedEntities` one entity per part (tag part + 2, its parent the
+/// model entity) holding the part's cells and the nodes it owns (those
+/// whose lowest part among their cells' is it). Node and cell tags are the
+/// same either way: index + 1.
+pub fn write_msh_parts_to<W: Write>(mut w: W, mesh: &CellMeshView, partition: Option<(&[usize], usize)>) -> Result<()> {
     let perm = mesh.checked_permutation(&gmsh_multi_indices(mesh.simplex, mesh.order))?;
     let ty = gmsh_element_type(mesh.simplex, mesh.order)
         .ok_or_else(|| Error::InvalidInput(format!("no gmsh type for order {}", mesh.order)))?;
     let dim = mesh.simplex.dim();
-    let n = mesh.n_nodes();
-    let ne = mesh.n_cells();
-    let npc = mesh.nodes_per_cell();
-    let (mut lo, mut hi) = ([0.0f64; 3], [0.0f64; 3]);
-    for i in 0..n {
-        let x = mesh.node(i);
-        for c in 0..3 {
-            if i == 0 || x[c] < lo[c] {
-                lo[c] = x[c];
+    let (n, ne, npc) = (mesh.n_nodes(), mesh.n_cells(), mesh.nodes_per_cell());
+    // Per cell and node, the part (0 without a partition).
+    let (part_of_cell, parts): (Vec<usize>, usize) = match partition {
+        None => (vec![0; ne], 1),
+        Some((part, parts)) => {
+            if part.len() != ne || part.iter().any(|&p| p >= parts) {
+                return Err(Error::InvalidInput(format!("a partition into {parts} parts of {} cells", part.len())));
             }
-            if i == 0 || x[c] > hi[c] {
-                hi[c] = x[c];
-            }
+            (part.to_vec(), parts)
+        }
+    };
+    let mut part_of_node = vec![usize::MAX; n];
+    for (cell, &p) in mesh.cells.chunks_exact(npc).zip(&part_of_cell) {
+        for &k in cell {
+            part_of_node[k] = part_of_node[k].min(p);
         }
     }
+    let nodes_of: Vec<Vec<usize>> = (0..parts).map(|p| (0..n).filter(|&i| part_of_node[i] == p).collect()).collect();
+    let cells_of: Vec<Vec<usize>> = (0..parts).map(|p| (0..ne).filter(|&c| part_of_cell[c] == p).collect()).collect();
+    let tag = |p: usize| if partition.is_some() { p + 2 } else { 1 };
+    let bbox = |w: &mut W, nodes: &mut dyn Iterator<Item = usize>| -> std::io::Result<()> {
+        let (mut lo, mut hi) = ([0.0f64; 3], [0.0f64; 3]);
+        for (k, i) in nodes.enumerate() {
+            let x = mesh.node(i);
+            for c in 0..3 {
+                if k == 0 || x[c] < lo[c] {
+                    lo[c] = x[c];
+                }
+                if k == 0 || x[c] > hi[c] {
+                    hi[c] = x[c];
+                }
+            }
+        }
+        for x in lo.iter().chain(&hi) {
+            write!(w, " ")?;
+            write_f64(w, *x)?;
+        }
+        Ok(())
+    };
     let w = &mut w;
     (|| -> std::io::Result<()> {
         writeln!(w, "$MeshFormat\n4.1 0 8\n$EndMeshFormat")?;
         writeln!(w, "$Entities")?;
         writeln!(w, "0 0 {} {}", usize::from(dim == 2), usize::from(dim == 3))?;
         write!(w, "1")?;
-        for x in lo.iter().chain(&hi) {
-            write!(w, " ")?;
-            write_f64(w, *x)?;
-        }
+        bbox(w, &mut (0..n))?;
         writeln!(w, " 0 0\n$EndEntities")?;
-        writeln!(w, "$Nodes\n1 {n} 1 {n}\n{dim} 1 0 {n}")?;
-        for i in 1..=n {
-            writeln!(w, "{i}")?;
+        if partition.is_some() {
+            writeln!(w, "$PartitionedEntities\n{parts}\n0")?;
+            writeln!(w, "0 0 {} {}", if dim == 2 { parts } else { 0 }, if dim == 3 { parts } else { 0 })?;
+            for p in 0..parts {
+                write!(w, "{} {dim} 1 1 {}", tag(p), p + 1)?;
+                bbox(w, &mut cells_of[p].iter().flat_map(|&c| mesh.cells[c * npc..(c + 1) * npc].iter().copied()))?;
+                writeln!(w, " 0 0")?;
+            }
+            writeln!(w, "$EndPartitionedEntities")?;
         }
-        for i in 0..n {
-            let x = mesh.node(i);
-            write_f64(w, x[0])?;
-            write!(w, " ")?;
-            write_f64(w, x[1])?;
-            write!(w, " ")?;
-            write_f64(w, x[2])?;
-            writeln!(w)?;
+        let blocks = (0..parts).filter(|&p| !nodes_of[p].is_empty()).count();
+        writeln!(w, "$Nodes\n{blocks} {n} 1 {n}")?;
+        for (p, nodes) in nodes_of.iter().enumerate().filter(|(_, v)| !v.is_empty()) {
+            writeln!(w, "{dim} {} 0 {}", tag(p), nodes.len())?;
+            for &i in nodes {
+                writeln!(w, "{}", i + 1)?;
+            }
+            for &i in nodes {
+                let x = mesh.node(i);
+                write_f64(w, x[0])?;
+                write!(w, " ")?;
+                write_f64(w, x[1])?;
+                write!(w, " ")?;
+                write_f64(w, x[2])?;
+                writeln!(w)?;
+            }
         }
         writeln!(w, "$EndNodes")?;
-        writeln!(w, "$Elements\n1 {ne} 1 {ne}\n{dim} 1 {ty} {ne}")?;
-        for (e, cell) in mesh.cells.chunks_exact(npc).enumerate() {
-            write!(w, "{}", e + 1)?;
-            for &k in &perm {
-                write!(w, " {}", cell[k] + 1)?;
+        let blocks = (0..parts).filter(|&p| !cells_of[p].is_empty()).count();
+        writeln!(w, "$Elements\n{blocks} {ne} 1 {ne}")?;
+        for (p, cells) in cells_of.iter().enumerate().filter(|(_, v)| !v.is_empty()) {
+            writeln!(w, "{dim} {} {ty} {}", tag(p), cells.len())?;
+            for &e in cells {
+                write!(w, "{}", e + 1)?;
+                for &k in &perm {
+                    write!(w, " {}", mesh.cells[e * npc + k] + 1)?;
+                }
+                writeln!(w)?;
             }
-            writeln!(w)?;
         }
         writeln!(w, "$EndElements")?;
         w.flush()
@@ -897,6 +952,37 @@ $EndElements
     #[test]
     fn write_then_parse_recovers_order_4_triangles() {
         round_trip(Simplex::Tri, 4);
+    }
+
+    /// The partitioned format: one entity per part, the nodes each in the
+    /// block of the lowest part holding them; read back (the reader skips
+    /// $PartitionedEntities), the same cells on the same node positions.
+    #[test]
+    fn a_partitioned_mesh_reads_back_as_the_same_cells() {
+        let (simplex, p) = (Simplex::Tet, 2);
+        let multi = gmsh_multi_indices(simplex, p);
+        let npc = multi.len();
+        let coords = grid_nodes(simplex, p, &multi, 2);
+        let cells: Vec<usize> = (0..2 * npc).collect();
+        let view = CellMeshView { simplex, order: p, coords: &coords, cells: &cells, cell_multi: &multi };
+        let mut buf = Vec::new();
+        write_msh_parts_to(&mut buf, &view, Some((&[1, 0], 2))).unwrap();
+        let text = std::str::from_utf8(&buf).unwrap();
+        assert!(text.contains("$PartitionedEntities\n2\n0\n0 0 0 2\n2 3 1 1 1 "), "{text}");
+        assert!(text.contains("$Elements\n2 2 1 2\n3 2 11 1\n2 "), "part 0 (entity 2) holds cell 2: {text}");
+        let msh = parse_msh(text).unwrap();
+        let (_, _, c2, cells2) = high_order_cells(&msh).unwrap();
+        let d = simplex.dim();
+        let positions = |c: &[f64], cell: &[usize]| -> Vec<Vec<u64>> {
+            cell.iter().map(|&i| c[i * d..(i + 1) * d].iter().map(|x| x.to_bits()).collect()).collect()
+        };
+        let mut written: Vec<_> = cells.chunks(npc).map(|c| positions(&coords, c)).collect();
+        let mut read: Vec<_> = cells2.chunks(npc).map(|c| positions(&c2, c)).collect();
+        written.sort();
+        read.sort();
+        assert_eq!(written, read);
+        let bad = write_msh_parts_to(Vec::new(), &view, Some((&[0, 2], 2)));
+        assert!(matches!(bad, Err(Error::InvalidInput(_))), "{bad:?}");
     }
 
     #[test]

@@ -16,6 +16,20 @@ pub fn check_mesh_extension(path: &Path) -> Result<()> {
     }
 }
 
+/// The view of `mesh` at its equispaced nodes `coords` (of `equi`), which
+/// gmsh's and VTK's cells interpolate at.
+fn equispaced_view<'a>(mesh: &'a HighOrderMesh, coords: &'a [f64], equi: &'a NodeSet) -> CellMeshView<'a> {
+    CellMeshView { simplex: mesh.simplex, order: mesh.order, coords, cells: &mesh.cells, cell_multi: &equi.multi }
+}
+
+/// Write `mesh` to `path` in gmsh's partitioned MSH 4.1 format, cell `c` in
+/// part `part[c]` of `parts` ([`super::gmsh::write_msh_parts_to`]).
+pub fn write_mesh_partitioned(path: &Path, mesh: &HighOrderMesh, part: &[usize], parts: usize) -> Result<()> {
+    let equi = NodeSet::new(mesh.simplex, mesh.order, NodeSpacing::Equispaced);
+    let coords = mesh.equispaced_coords();
+    super::gmsh::write_msh_partitioned(path, &equispaced_view(mesh, &coords, &equi), part, parts)
+}
+
 /// Write `mesh` to `path` (`.msh`: gmsh MSH 4.1; `.vtu`: VTK Lagrange cells,
 /// with Q1 and Q3 as cell data when `cell_quality` is given).
 ///
@@ -25,13 +39,7 @@ pub fn write_mesh(path: &Path, mesh: &HighOrderMesh, cell_quality: Option<&[Elem
     check_mesh_extension(path)?;
     let equi = NodeSet::new(mesh.simplex, mesh.order, NodeSpacing::Equispaced);
     let coords = mesh.equispaced_coords();
-    let view = CellMeshView {
-        simplex: mesh.simplex,
-        order: mesh.order,
-        coords: &coords,
-        cells: &mesh.cells,
-        cell_multi: &equi.multi,
-    };
+    let view = equispaced_view(mesh, &coords, &equi);
     if path.extension().and_then(|e| e.to_str()) == Some("vtu") {
         let (q1, q3): (Vec<f64>, Vec<f64>) = cell_quality.unwrap_or(&[]).iter().map(|q| (q.q1, q.q3)).unzip();
         let cell_data: Vec<(&str, &[f64])> =

@@ -15,7 +15,7 @@ pub mod mesh_file;
 pub mod report;
 pub mod vtk;
 
-pub use mesh_file::{check_mesh_extension, write_mesh};
+pub use mesh_file::{check_mesh_extension, write_mesh, write_mesh_partitioned};
 
 use crate::error::{Error, Result};
 use crate::reference::ordering::permutation;

@@ -61,7 +61,6 @@ extern "C" {
 /// and with few facets between parts: METIS's k-way partition of the dual
 /// graph whose edges are the shared facets (`vertices_per_cell − 1`
 /// common vertices). One part: all zeros, without METIS.
-#[cfg_attr(not(feature = "mpi"), allow(dead_code))]
 pub fn try_part_cells(
     cells: &[usize],
     vertices_per_cell: usize,

@@ -190,3 +190,42 @@ def test_a_failing_run_fails_alike_on_every_process_and_writes_nothing(cases, tm
         errors = [l for l in r.stderr.splitlines() if l.startswith("error")]
         assert errors == [e.replace("hocurve: error:", "error (rank 0):") for e in s.stderr.splitlines()
                           if e.startswith("hocurve: error")], r.stderr
+
+
+@pytest.mark.parametrize("case", ["plate-2d", "sphere-caps"])
+def test_partitioned_output_is_the_gathered_mesh_in_one_part_per_process(cases, case, tmp_path):
+    gmsh = pytest.importorskip("gmsh")
+    args = [*cases[case], "--order", "3"]
+    for n in (2, 3):
+        r = distributed(n, args, tmp_path, name="whole")
+        assert r.returncode == 0, r.stderr
+        r = distributed(n, [*args, "--partitioned", "on"], tmp_path, name="parts")
+        assert r.returncode == 0, r.stderr
+        whole_nodes, whole_cells = read_msh_nodes_and_cells(tmp_path / "whole.msh")
+        gmsh.initialize()
+        try:
+            gmsh.option.setNumber("General.Terminal", 0)
+            gmsh.open(str(tmp_path / "parts.msh"))
+            assert gmsh.model.getNumberOfPartitions() == n
+            dim = gmsh.model.getDimension()
+            parts = [(t, gmsh.model.getPartitions(dim, t)) for _, t in gmsh.model.getEntities(dim)]
+            parts = [(t, list(p)) for t, p in parts if len(p) > 0]
+            assert sorted(p[0] for _, p in parts) == list(range(1, n + 1)), parts
+            cells = {}
+            for t, _ in parts:
+                assert gmsh.model.getParent(dim, t) == (dim, 1)
+                _, tags, nodes = gmsh.model.mesh.getElements(dim, t)
+                npc = len(nodes[0]) // len(tags[0])
+                for e, k in zip(tags[0], range(0, len(nodes[0]), npc)):
+                    cells[int(e)] = [int(v) for v in nodes[0][k : k + dim + 1]]
+            assert len(cells) == len(whole_cells) and sorted(cells) == list(range(1, len(whole_cells) + 1))
+            assert all(cells[e + 1] == c for e, c in enumerate(whole_cells))
+            tags, xyz, _ = gmsh.model.mesh.getNodes()
+            assert sorted(int(t) for t in tags) == sorted(whole_nodes)
+            for k, t in enumerate(tags):
+                assert math.dist(xyz[3 * k : 3 * k + 3], whole_nodes[int(t)]) < 1e-12
+        finally:
+            gmsh.finalize()
+    r = subprocess.run([str(BIN / "hocurve"), "curve", *args, "--partitioned", "on", "--output", tmp_path / "s.msh"],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode != 0 and "only hocurve-mpi" in r.stderr, r.stderr

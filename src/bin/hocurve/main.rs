@@ -56,6 +56,7 @@ USAGE:
                 [--spacing optimal|equispaced] [--solver auto|direct|iterative]
                 [--caps remove|keep] [--retry on|off] [--repair on|off]
                 [--adaptive on|off] [--max-splits K] [--condense on|off] [--optimize on|off]
+                [--partitioned on|off] (hocurve-mpi: gmsh's partitioned format, a part per process)
       Curve a linear gmsh (.msh 4.1) mesh. TAG is the elementary entity tag of
       the boundary facets (or 3D feature curves) that lie on SHAPE:
         sphere:cx,cy,cz,r        circle:cx,cy,r (2D)     circle3:cx,cy,cz,nx,ny,nz,r
@@ -384,8 +385,14 @@ fn cmd_curve(argv: &[String], parallel: Parallel, ranks: Option<usize>) -> Resul
             "max-iterations",
             "output",
             "report",
+            "partitioned",
         ],
     )?;
+    // gmsh's partitioned format, one part per process (hocurve-mpi only).
+    let partitioned = args.on_off("partitioned")?.unwrap_or(false);
+    if partitioned && ranks.is_none() {
+        return Err(Error::InvalidInput("--partitioned on: only hocurve-mpi writes partitioned meshes".into()));
+    }
     let input = match args.positional.as_slice() {
         [one] => PathBuf::from(one),
         [] => return Err(Error::InvalidInput("curve needs an input .msh file".into())),
@@ -395,6 +402,9 @@ fn cmd_curve(argv: &[String], parallel: Parallel, ranks: Option<usize>) -> Resul
         args.get("output").ok_or_else(|| Error::InvalidInput("curve needs --output OUT.msh|OUT.vtu".into()))?,
     );
     io::check_mesh_extension(&output)?;
+    if partitioned && output.extension().and_then(|e| e.to_str()) != Some("msh") {
+        return Err(Error::InvalidInput("--partitioned on writes gmsh's format: the output must end in .msh".into()));
+    }
     if args.get("order").is_none() {
         return Err(Error::InvalidInput("curve needs --order P".into()));
     }
@@ -429,7 +439,10 @@ fn cmd_curve(argv: &[String], parallel: Parallel, ranks: Option<usize>) -> Resul
     // Facets and feature edges whose tag has no shape stay straight.
     mesh.retain_tags(|d, t| projector.get(d, t).is_some());
     let curved = run_case(&input.display().to_string(), &mesh, &projector, &opts)?;
-    write_mesh(&output, &curved)?;
+    match ranks.filter(|_| partitioned) {
+        Some(parts) => io::write_mesh_partitioned(&output, &curved.mesh, &curved.mesh.partition(parts)?, parts)?,
+        None => write_mesh(&output, &curved)?,
+    }
     eprintln!("wrote {}", output.display());
     if let Some(r) = args.get("report") {
         write_curve_report(Path::new(r), &curved, opts.spacing, &output, ranks)?;
