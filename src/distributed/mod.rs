@@ -603,7 +603,7 @@ struct Layout {
 /// nodes for PETSc rank by rank.
 fn split(mesh: &HighOrderMesh, dofs: &DofMap, size: usize) -> Result<Vec<Layout>> {
     let dim = mesh.dim();
-    let part = mesh.partition(size)?;
+    let part = crate::solver::partition(mesh, size)?;
     let mut owner = vec![usize::MAX; mesh.n_nodes()];
     for c in 0..mesh.n_cells() {
         for &n in mesh.cell(c) {

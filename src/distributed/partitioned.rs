@@ -31,7 +31,7 @@ use crate::curve::{CurveReport, ElasticStop, StepBack, StepBackReason, Timings};
 use crate::geometry::Projector;
 use crate::mesh::{HighOrderMesh, LinearMesh, NodeConstraint, RepairSummary};
 use crate::optimize::OptimizeReport;
-use crate::quality::{ElementQuality, MeshQuality, HISTOGRAM_BINS};
+use crate::quality::{ElementQuality, MeshQuality};
 use crate::session::{ProgressFn, Session};
 use crate::solver::{FallbackReason, SolveLog, SolvedBy};
 use crate::{Error, Result, SolverFailure};
@@ -700,12 +700,7 @@ fn encode_report(w: &mut Wire, r: &CurveReport) {
     ] {
         w.int(n);
     }
-    let q = &r.quality;
-    w.floats.extend_from_slice(&[q.min_q1, q.min_q2, q.min_q3, q.min_q4, q.min_q5, q.mean_q3, q.certified_min_q3]);
-    for n in [q.n_invalid, q.worst_cell, q.n_certified_invalid, q.n_uncertain] {
-        w.int(n);
-    }
-    w.list(&q.histogram.iter().map(|&n| n as u64).collect::<Vec<_>>());
+    encode_quality(w, &r.quality);
     let s = &r.solves;
     w.text(s.solver);
     w.list(&s.iterations.iter().map(|&n| n as u64).collect::<Vec<_>>());
@@ -719,21 +714,7 @@ fn encode_report(w: &mut Wire, r: &CurveReport) {
         w.text(&e.detail);
         w.floats.push(e.load);
     }
-    let o = &r.optimization;
-    for n in [
-        o.ran as usize,
-        o.target_cells,
-        o.cells_touched,
-        o.nodes_moved,
-        o.patches,
-        o.rounds,
-        o.cells_split,
-        o.invalid_before,
-        o.invalid_after,
-    ] {
-        w.int(n);
-    }
-    w.floats.extend_from_slice(&[o.min_q3_before, o.min_q3_after, o.seconds]);
+    encode_optimization(w, &r.optimization);
 }
 
 fn decode_report(r: &mut Reader, session: &Session) -> CurveReport {
@@ -768,24 +749,7 @@ fn decode_report(r: &mut Reader, session: &Session) -> CurveReport {
         edge_splits,
         surface_flips,
     };
-    let [min_q1, min_q2, min_q3, min_q4, min_q5, mean_q3, certified_min_q3] = std::array::from_fn(|_| r.float());
-    let [n_invalid, worst_cell, n_certified_invalid, n_uncertain] = std::array::from_fn(|_| r.int());
-    let bins = r.list();
-    let histogram: [usize; HISTOGRAM_BINS] = std::array::from_fn(|k| bins.get(k).copied().unwrap_or(0) as usize);
-    let quality = MeshQuality {
-        min_q1,
-        min_q2,
-        min_q3,
-        min_q4,
-        min_q5,
-        mean_q3,
-        n_invalid,
-        worst_cell,
-        histogram,
-        certified_min_q3,
-        n_certified_invalid,
-        n_uncertain,
-    };
+    let quality = decode_quality(r);
     let name = r.text();
     let solves = SolveLog {
         solver: SOLVER_NAMES.iter().find(|&&n| n == name).copied().unwrap_or("external"),
@@ -800,22 +764,6 @@ fn decode_report(r: &mut Reader, session: &Session) -> CurveReport {
         let detail = r.text();
         ElasticStop { load: r.float(), reason, cell, detail, restarted }
     });
-    let [ran, target_cells, cells_touched, nodes_moved, patches, rounds, cells_split, invalid_before, invalid_after] =
-        std::array::from_fn(|_| r.int());
-    let optimization = OptimizeReport {
-        ran: ran == 1,
-        target_cells,
-        cells_touched,
-        nodes_moved,
-        patches,
-        rounds,
-        cells_split,
-        invalid_before,
-        invalid_after,
-        min_q3_before: r.float(),
-        min_q3_after: r.float(),
-        seconds: r.float(),
-    };
     CurveReport {
         order: opts.order,
         formulation: opts.formulation,
@@ -843,6 +791,70 @@ fn decode_report(r: &mut Reader, session: &Session) -> CurveReport {
         newton_history: Vec::new(),
         solves,
         elastic_stop,
-        optimization,
+        optimization: decode_optimization(r),
+    }
+}
+
+fn encode_quality(w: &mut Wire, q: &MeshQuality) {
+    w.floats.extend_from_slice(&[q.min_q1, q.min_q2, q.min_q3, q.min_q4, q.min_q5, q.mean_q3, q.certified_min_q3]);
+    for n in [q.n_invalid, q.worst_cell, q.n_certified_invalid, q.n_uncertain] {
+        w.int(n);
+    }
+    w.list(&q.histogram.iter().map(|&n| n as u64).collect::<Vec<_>>());
+}
+
+fn decode_quality(r: &mut Reader) -> MeshQuality {
+    let [min_q1, min_q2, min_q3, min_q4, min_q5, mean_q3, certified_min_q3] = std::array::from_fn(|_| r.float());
+    let [n_invalid, worst_cell, n_certified_invalid, n_uncertain] = std::array::from_fn(|_| r.int());
+    let bins = r.list();
+    MeshQuality {
+        min_q1,
+        min_q2,
+        min_q3,
+        min_q4,
+        min_q5,
+        mean_q3,
+        n_invalid,
+        worst_cell,
+        histogram: std::array::from_fn(|k| bins.get(k).copied().unwrap_or(0) as usize),
+        certified_min_q3,
+        n_certified_invalid,
+        n_uncertain,
+    }
+}
+
+fn encode_optimization(w: &mut Wire, o: &OptimizeReport) {
+    for n in [
+        o.ran as usize,
+        o.target_cells,
+        o.cells_touched,
+        o.nodes_moved,
+        o.patches,
+        o.rounds,
+        o.cells_split,
+        o.invalid_before,
+        o.invalid_after,
+    ] {
+        w.int(n);
+    }
+    w.floats.extend_from_slice(&[o.min_q3_before, o.min_q3_after, o.seconds]);
+}
+
+fn decode_optimization(r: &mut Reader) -> OptimizeReport {
+    let [ran, target_cells, cells_touched, nodes_moved, patches, rounds, cells_split, invalid_before, invalid_after] =
+        std::array::from_fn(|_| r.int());
+    OptimizeReport {
+        ran: ran == 1,
+        target_cells,
+        cells_touched,
+        nodes_moved,
+        patches,
+        rounds,
+        cells_split,
+        invalid_before,
+        invalid_after,
+        min_q3_before: r.float(),
+        min_q3_after: r.float(),
+        seconds: r.float(),
     }
 }

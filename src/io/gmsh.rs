@@ -259,39 +259,21 @@ pub fn write_msh_parts_to<W: Write>(mut w: W, mesh: &CellMeshView, partition: Op
     let nodes_of: Vec<Vec<usize>> = (0..parts).map(|p| (0..n).filter(|&i| part_of_node[i] == p).collect()).collect();
     let cells_of: Vec<Vec<usize>> = (0..parts).map(|p| (0..ne).filter(|&c| part_of_cell[c] == p).collect()).collect();
     let tag = |p: usize| if partition.is_some() { p + 2 } else { 1 };
-    let bbox = |w: &mut W, nodes: &mut dyn Iterator<Item = usize>| -> std::io::Result<()> {
-        let (mut lo, mut hi) = ([0.0f64; 3], [0.0f64; 3]);
-        for (k, i) in nodes.enumerate() {
-            let x = mesh.node(i);
-            for c in 0..3 {
-                if k == 0 || x[c] < lo[c] {
-                    lo[c] = x[c];
-                }
-                if k == 0 || x[c] > hi[c] {
-                    hi[c] = x[c];
-                }
-            }
-        }
-        for x in lo.iter().chain(&hi) {
-            write!(w, " ")?;
-            write_f64(w, *x)?;
-        }
-        Ok(())
-    };
     let w = &mut w;
     (|| -> std::io::Result<()> {
         writeln!(w, "$MeshFormat\n4.1 0 8\n$EndMeshFormat")?;
         writeln!(w, "$Entities")?;
         writeln!(w, "0 0 {} {}", usize::from(dim == 2), usize::from(dim == 3))?;
         write!(w, "1")?;
-        bbox(w, &mut (0..n))?;
+        write_bounding_box(w, mesh, 0..n)?;
         writeln!(w, " 0 0\n$EndEntities")?;
         if partition.is_some() {
             writeln!(w, "$PartitionedEntities\n{parts}\n0")?;
             writeln!(w, "0 0 {} {}", if dim == 2 { parts } else { 0 }, if dim == 3 { parts } else { 0 })?;
             for p in 0..parts {
                 write!(w, "{} {dim} 1 1 {}", tag(p), p + 1)?;
-                bbox(w, &mut cells_of[p].iter().flat_map(|&c| mesh.cells[c * npc..(c + 1) * npc].iter().copied()))?;
+                let nodes = cells_of[p].iter().flat_map(|&c| mesh.cells[c * npc..(c + 1) * npc].iter().copied());
+                write_bounding_box(w, mesh, nodes)?;
                 writeln!(w, " 0 0")?;
             }
             writeln!(w, "$EndPartitionedEntities")?;
@@ -330,6 +312,32 @@ pub fn write_msh_parts_to<W: Write>(mut w: W, mesh: &CellMeshView, partition: Op
         w.flush()
     })()
     .map_err(io_err)
+}
+
+/// The smallest and largest coordinates of `nodes` of `mesh`, each written
+/// after a space.
+fn write_bounding_box<W: Write>(
+    w: &mut W,
+    mesh: &CellMeshView,
+    nodes: impl Iterator<Item = usize>,
+) -> std::io::Result<()> {
+    let (mut lo, mut hi) = ([0.0f64; 3], [0.0f64; 3]);
+    for (k, i) in nodes.enumerate() {
+        let x = mesh.node(i);
+        for c in 0..3 {
+            if k == 0 || x[c] < lo[c] {
+                lo[c] = x[c];
+            }
+            if k == 0 || x[c] > hi[c] {
+                hi[c] = x[c];
+            }
+        }
+    }
+    for x in lo.iter().chain(&hi) {
+        write!(w, " ")?;
+        write_f64(w, *x)?;
+    }
+    Ok(())
 }
 
 /// A cursor over an MSH file: whitespace-separated tokens for ASCII parts,

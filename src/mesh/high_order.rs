@@ -63,21 +63,6 @@ impl HighOrderMesh {
         let n = self.nodes_per_cell();
         &self.cells[c * n..(c + 1) * n]
     }
-    /// The part (0..`parts`) of each cell: METIS's k-way partition of the
-    /// cells' dual graph (cells sharing a facet), balanced with few facets
-    /// between parts.
-    pub fn partition(&self, parts: usize) -> crate::Result<Vec<usize>> {
-        let nodes = crate::reference::NodeSet::new(self.simplex, self.order, self.spacing);
-        // The local positions of a cell's vertices (the nodes with one λ = 1).
-        let corners: Vec<usize> =
-            (0..self.nodes_per_cell()).filter(|&a| nodes.multi[a].contains(&self.order)).collect();
-        let mut vertices = Vec::with_capacity(self.n_cells() * corners.len());
-        for c in 0..self.n_cells() {
-            vertices.extend(corners.iter().map(|&a| self.cell(c)[a]));
-        }
-        crate::solver::metis::try_part_cells(&vertices, corners.len(), self.n_vertices, parts)
-    }
-
     /// Node `i` as a 3-vector (z = 0 in 2D).
     pub fn node(&self, i: usize) -> [f64; 3] {
         let d = self.dim();

@@ -10,6 +10,7 @@
 use std::os::raw::c_int;
 use std::sync::Mutex;
 
+use crate::mesh::HighOrderMesh;
 use crate::{Error, Result, SolverFailure};
 
 /// METIS's `idx_t` as compiled by `build.rs` (`IDXTYPEWIDTH=32`).
@@ -54,6 +55,20 @@ extern "C" {
         epart: *mut Idx,
         npart: *mut Idx,
     ) -> c_int;
+}
+
+/// The part (0..`parts`) of each cell of `mesh`: METIS's k-way partition
+/// of the cells' dual graph (cells sharing a facet), balanced with few
+/// facets between parts.
+pub fn partition(mesh: &HighOrderMesh, parts: usize) -> Result<Vec<usize>> {
+    let nodes = crate::reference::NodeSet::new(mesh.simplex, mesh.order, mesh.spacing);
+    // The local positions of a cell's vertices (the nodes with one λ = 1).
+    let corners: Vec<usize> = (0..mesh.nodes_per_cell()).filter(|&a| nodes.multi[a].contains(&mesh.order)).collect();
+    let mut vertices = Vec::with_capacity(mesh.n_cells() * corners.len());
+    for c in 0..mesh.n_cells() {
+        vertices.extend(corners.iter().map(|&a| mesh.cell(c)[a]));
+    }
+    try_part_cells(&vertices, corners.len(), mesh.n_vertices, parts)
 }
 
 /// The part (0..`parts`) of each of `n_cells` cells of `vertices_per_cell`

@@ -19,6 +19,7 @@ mod external;
 mod iterative;
 mod lu;
 pub(crate) mod metis;
+pub use metis::partition;
 
 pub use crate::sparse::{SparseRows, SymmetricCsc};
 pub use cholesky::{nested_dissection, node_block_size, DirectOrdering, SparseCholesky};

@@ -388,23 +388,12 @@ fn cmd_curve(argv: &[String], parallel: Parallel, ranks: Option<usize>) -> Resul
             "partitioned",
         ],
     )?;
-    // gmsh's partitioned format, one part per process (hocurve-mpi only).
-    let partitioned = args.on_off("partitioned")?.unwrap_or(false);
-    if partitioned && ranks.is_none() {
-        return Err(Error::InvalidInput("--partitioned on: only hocurve-mpi writes partitioned meshes".into()));
-    }
     let input = match args.positional.as_slice() {
         [one] => PathBuf::from(one),
         [] => return Err(Error::InvalidInput("curve needs an input .msh file".into())),
         more => return Err(Error::InvalidInput(format!("curve takes one input file, got {}", more.len()))),
     };
-    let output = PathBuf::from(
-        args.get("output").ok_or_else(|| Error::InvalidInput("curve needs --output OUT.msh|OUT.vtu".into()))?,
-    );
-    io::check_mesh_extension(&output)?;
-    if partitioned && output.extension().and_then(|e| e.to_str()) != Some("msh") {
-        return Err(Error::InvalidInput("--partitioned on writes gmsh's format: the output must end in .msh".into()));
-    }
+    let (output, partitioned) = curve_output(&args, ranks)?;
     if args.get("order").is_none() {
         return Err(Error::InvalidInput("curve needs --order P".into()));
     }
@@ -440,7 +429,9 @@ fn cmd_curve(argv: &[String], parallel: Parallel, ranks: Option<usize>) -> Resul
     mesh.retain_tags(|d, t| projector.get(d, t).is_some());
     let curved = run_case(&input.display().to_string(), &mesh, &projector, &opts)?;
     match ranks.filter(|_| partitioned) {
-        Some(parts) => io::write_mesh_partitioned(&output, &curved.mesh, &curved.mesh.partition(parts)?, parts)?,
+        Some(parts) => {
+            io::write_mesh_partitioned(&output, &curved.mesh, &hocurve::solver::partition(&curved.mesh, parts)?, parts)?
+        }
         None => write_mesh(&output, &curved)?,
     }
     eprintln!("wrote {}", output.display());
@@ -448,6 +439,23 @@ fn cmd_curve(argv: &[String], parallel: Parallel, ranks: Option<usize>) -> Resul
         write_curve_report(Path::new(r), &curved, opts.spacing, &output, ranks)?;
     }
     Ok(())
+}
+
+/// The output file of `curve`, and whether it is written in gmsh's
+/// partitioned format, one part per process (hocurve-mpi only).
+fn curve_output(args: &Args, ranks: Option<usize>) -> Result<(PathBuf, bool)> {
+    let output = PathBuf::from(
+        args.get("output").ok_or_else(|| Error::InvalidInput("curve needs --output OUT.msh|OUT.vtu".into()))?,
+    );
+    io::check_mesh_extension(&output)?;
+    let partitioned = args.on_off("partitioned")?.unwrap_or(false);
+    if partitioned && ranks.is_none() {
+        return Err(Error::InvalidInput("--partitioned on: only hocurve-mpi writes partitioned meshes".into()));
+    }
+    if partitioned && output.extension().and_then(|e| e.to_str()) != Some("msh") {
+        return Err(Error::InvalidInput("--partitioned on writes gmsh's format: the output must end in .msh".into()));
+    }
+    Ok((output, partitioned))
 }
 
 /// The JSON report of a `curve` run, with the number of MPI processes when
