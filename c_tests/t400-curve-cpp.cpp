@@ -45,6 +45,21 @@ int main() {
     std::printf("no cells: %s\n", e.what());
   }
 
+  // A mesh spread over MPI processes needs a library built with MPI (this one is not).
+  try {
+    hocurve::Mesh::distributed(0, 3, coords, std::vector<int64_t>(fx.n_vertices, 0), cells);
+    REQUIRE(false, "a distributed mesh without MPI");
+  } catch (const hocurve::Error &e) {
+    REQUIRE(e.status() == HOC_ERROR_INVALID_ARGUMENT, "status %d", e.status());
+    REQUIRE(e.message().find("without MPI") != std::string::npos, "%s", e.what());
+  }
+  try {
+    hocurve::Mesh::distributed(0, 3, coords, std::vector<int64_t>(2, 0), cells);
+    REQUIRE(false, "two global ids accepted");
+  } catch (const hocurve::Error &e) {
+    REQUIRE(e.status() == HOC_ERROR_INVALID_ARGUMENT, "status %d", e.status());
+  }
+
   // Vector sizes that do not fit: refused before a value is read.
   try {
     hocurve::Mesh bad(3, std::vector<double>(13, 0.0), cells);
@@ -168,6 +183,13 @@ int main() {
                                                on.size(), on.data(), &n_boundary);
   REQUIRE(n_boundary == fx.n_facets, "%zu boundary faces, %zu given", n_boundary, fx.n_facets);
   REQUIRE(target.input_cells().size() == n_cells, "one input cell per cell");
+  {
+    // A whole mesh is its own global numbering, all on process 0.
+    auto g = target.global_nodes();
+    REQUIRE(g.ids.size() == target.node_count(), "one global id per node");
+    for (std::size_t i = 0; i < g.ids.size(); i++)
+      REQUIRE(g.ids[i] == static_cast<int64_t>(i) && g.owners[i] == 0, "node %zu", i);
+  }
   double worst = 0.0;
   for (std::size_t i = 0; i < on.size(); ++i)
     if (on[i]) worst = std::fmax(worst, dist_sphere(&x[3 * i]));

@@ -146,6 +146,25 @@ class Mesh {
       : Mesh(dim, count(coords.size(), dim, "coords"), coords.data(), count(cells.size(), dim + 1, "cells"),
              cells.data()) {}
 
+  /** Wraps hoc_mesh_create_distributed (collective over the communicator, given as
+   *  MPI_Comm_c2f(comm)): this MPI process's share of a mesh, its vertices with their
+   *  global ids. Needs a library built with MPI; throws Error like the constructor. */
+  static Mesh distributed(int comm, int dim, const std::vector<double> &coords,
+                          const std::vector<int64_t> &global_ids, const std::vector<int64_t> &cells) {
+    std::size_t n_vertices = count(coords.size(), dim, "coords");
+    if (global_ids.size() != n_vertices)
+      throw Error(HOC_ERROR_INVALID_ARGUMENT, std::to_string(global_ids.size()) + " global ids for " +
+                                                  std::to_string(n_vertices) + " vertices");
+    HocMesh *out = nullptr;
+    HocStatus st = hoc_mesh_create_distributed(comm, dim, n_vertices, coords.data(), global_ids.data(),
+                                               count(cells.size(), dim + 1, "cells"), cells.data(), &out);
+    if (st != HOC_OK) {
+      const char *msg = hoc_mesh_last_error(out);
+      throw Error(st, msg ? msg : "");
+    }
+    return Mesh(out, dim);
+  }
+
   ~Mesh() { hoc_mesh_destroy(&mesh_); }
   Mesh(const Mesh &) = delete;
   Mesh &operator=(const Mesh &) = delete;
@@ -375,10 +394,22 @@ class Mesh {
     check(hoc_mesh_get_input_cells(mesh_, ids.size(), ids.data()), mesh_);
     return ids;
   }
+  /** Each node's index in the whole mesh and its owner process (hoc_mesh_get_global_nodes). */
+  struct GlobalNodes {
+    std::vector<int64_t> ids;
+    std::vector<int> owners;
+  };
+  GlobalNodes global_nodes() const {
+    GlobalNodes g{std::vector<int64_t>(node_count()), std::vector<int>(node_count())};
+    check(hoc_mesh_get_global_nodes(mesh_, g.ids.size(), g.ids.data(), g.owners.data()), mesh_);
+    return g;
+  }
   /** Writes .msh or .vtu by extension. */
   void write(const std::string &path) const { check(hoc_mesh_write(mesh_, path.c_str()), mesh_); }
 
  private:
+  /** Takes ownership of a handle made by hoc_mesh_create_distributed. */
+  Mesh(HocMesh *mesh, int dim) : mesh_(mesh), dim_(dim), callbacks_(new detail::Callbacks) {}
   /** size / per, or Error if size is not a multiple of per. */
   static std::size_t count(std::size_t size, int per, const char *what) {
     if (per <= 0) return 0;  // a bad dim: hoc_mesh_create says so
