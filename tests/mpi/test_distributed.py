@@ -1,10 +1,11 @@
 """The C ABI's distributed mesh (hoc_mesh_create_distributed) under mpirun,
 against the serial `hocurve curve`.
 
-Each process of `mpirun -np N distributed` (tests/mpi/distributed.c, linked
+Each process of `mpirun -np N distributed` (tests/mpi/distributed.c, and the
+same through the C++ wrapper and the Fortran module; linked
 with the library built with the `mpi` feature) gives hocurve its own share
 of a gmsh mesh (its cells, every vertex they use with its global id, its
-boundary facets) and its own projector (a circle or sphere in C). The
+boundary facets) and its own projector (a circle or sphere). The
 shares are cut here, two ways: slabs along x, so that process 0 projects
 onto the curved boundary itself; and shells around the curved boundary,
 outermost first, so that process 0 holds none of it and every projection
@@ -43,9 +44,9 @@ CASES = {
 
 @pytest.fixture(scope="module")
 def programs(tmp_path_factory):
-    """distributed.c and distributed.f90 (with the hocurve module), linked with the library built with MPI."""
-    mpicc, mpif90 = shutil.which("mpicc"), shutil.which("mpif90")
-    assert mpicc and mpif90, "mpicc or mpif90 not found (Debian: libopenmpi-dev, gfortran)"
+    """distributed.c, .cpp (hocurve.hpp) and .f90 (the hocurve module), linked with the library built with MPI."""
+    mpicc, mpicxx, mpif90 = shutil.which("mpicc"), shutil.which("mpicxx"), shutil.which("mpif90")
+    assert mpicc and mpicxx and mpif90, "mpicc, mpicxx or mpif90 not found (Debian: libopenmpi-dev, g++, gfortran)"
     assert (MPI_LIB / "libhocurve.so").is_file(), f"{MPI_LIB}/libhocurve.so: build with --features mpi"
     d = tmp_path_factory.mktemp("bin")
     # The library's file as its soname (libhocurve.so.MAJOR.MINOR) names it.
@@ -56,10 +57,12 @@ def programs(tmp_path_factory):
     here = REPO / "tests" / "mpi"
     subprocess.run([mpicc, "-std=c99", "-Wall", "-Werror", "-O1", str(here / "distributed.c"), "-I",
                     str(REPO / "include"), *link, "-o", str(d / "distributed")], check=True)
+    subprocess.run([mpicxx, "-std=c++17", "-Wall", "-Werror", "-O1", str(here / "distributed.cpp"), "-I",
+                    str(REPO / "include"), *link, "-o", str(d / "distributed_cpp")], check=True)
     subprocess.run([mpif90, "-std=f2008", "-Wall", "-Werror",
                     "-Wno-unused-dummy-argument", "-O1", "-J", str(d), str(REPO / "include" / "hocurve.f90"),
                     str(here / "distributed.f90"), *link, "-o", str(d / "distributed_f")], check=True)
-    return {"c": d / "distributed", "fortran": d / "distributed_f"}
+    return {"c": d / "distributed", "c++": d / "distributed_cpp", "fortran": d / "distributed_f"}
 
 
 def read_msh(path):
@@ -168,8 +171,9 @@ def test_the_shares_together_are_the_serial_mesh(programs, case, order, optimize
 
 @pytest.mark.parametrize("case, order, optimize, how", [("sphere-caps", 2, "off", "shells"),
                                                         ("plate-2d", 4, "on", "slabs")])
-def test_the_fortran_module_gives_the_same_shares(programs, case, order, optimize, how, tmp_path):
-    against_serial(programs["fortran"], case, order, optimize, how, tmp_path)
+@pytest.mark.parametrize("lang", ["c++", "fortran"])
+def test_the_cpp_and_fortran_interfaces_give_the_same_shares(programs, lang, case, order, optimize, how, tmp_path):
+    against_serial(programs[lang], case, order, optimize, how, tmp_path)
 
 
 def against_serial(program, case, order, optimize, how, tmp_path):
@@ -221,7 +225,7 @@ def against_serial(program, case, order, optimize, how, tmp_path):
 
 
 @pytest.mark.parametrize("case", list(CASES))
-@pytest.mark.parametrize("lang", ["c", "fortran"])
+@pytest.mark.parametrize("lang", ["c", "c++", "fortran"])
 def test_a_projector_failing_on_one_process_fails_the_run_alike_everywhere(programs, lang, case, tmp_path):
     name, tag, shape, _ = CASES[case]
     dim, nodes, cells, facets = read_msh(REPO / "tests" / "data" / name)
