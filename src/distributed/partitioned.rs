@@ -88,7 +88,7 @@ pub fn run(session: &mut Session, increments: usize) -> Result<()> {
     // SAFETY: MPI is initialised (`communicator` checked).
     let host = unsafe { ffi::RSMPI_Comm_f2c(part.comm) };
     super::petsc::initialize_on(Some(host)).map_err(|e| Error::solver(SolverFailure::Setup, e))?;
-    agree(&comm, check(session))?;
+    agree(&comm, check(session, increments))?;
     // Every process's settings must be process 0's.
     let mut mine = settings(session, increments).into_bytes();
     let mut len = mine.len() as u64;
@@ -116,7 +116,10 @@ pub fn run(session: &mut Session, increments: usize) -> Result<()> {
 }
 
 /// What a process checks of its own share before a run.
-fn check(session: &Session) -> Result<()> {
+fn check(session: &Session, increments: usize) -> Result<()> {
+    if increments == 0 {
+        return Err(Error::InvalidInput("increments must be >= 1".into()));
+    }
     let linear = session.input();
     if (!linear.facets.is_empty() || !linear.feature_edges.is_empty()) && !session.has_projector() {
         return Err(Error::InvalidInput("boundary facets are tagged but no projector is set".into()));

@@ -1344,13 +1344,14 @@ pub unsafe extern "C" fn hoc_mesh_set_fibres(mesh: *mut HocMesh, n_cells: usize,
 pub unsafe extern "C" fn hoc_mesh_run_increments(mesh: *mut HocMesh, increments: c_int) -> HocStatus {
     guard(mesh, || {
         let h = handle_mut(mesh)?;
+        if h.session.partition().is_some() {
+            // Checked with every process's, so that none is left waiting.
+            return run_distributed(&mut h.session, usize::try_from(increments).unwrap_or(0)).map_err(err);
+        }
         let n = usize::try_from(increments)
             .ok()
             .filter(|&n| n >= 1)
             .ok_or_else(|| arg(format!("increments must be >= 1, got {increments}")))?;
-        if h.session.partition().is_some() {
-            return run_distributed(&mut h.session, n).map_err(err);
-        }
         h.session.run(n).map_err(err)
     })
 }

@@ -2,7 +2,7 @@
  * (hoc_mesh_create_distributed), with its own projector, curves it with the
  * other processes, and writes what its handle then holds.
  *
- *   mpirun -np N distributed DIR ORDER OPTIMIZE FAIL_RANK
+ *   mpirun -np N distributed DIR ORDER OPTIMIZE FAIL_RANK [ZERO_RANK]
  *
  * DIR/part.R.txt is process R's share (written by test_distributed.py):
  *   dim n_vertices n_cells n_facets n_shapes
@@ -10,7 +10,8 @@
  *   n_cells lines:    dim + 1 local vertex indices
  *   n_facets lines:   dim local vertex indices, entity tag
  *   n_shapes lines:   tag cx cy cz r   (a circle or sphere: the projector)
- * The process FAIL_RANK (-1: none) has a projector that always fails.
+ * The process FAIL_RANK (-1: none) has a projector that always fails; the
+ * process ZERO_RANK (if given) asks for 0 increments.
  *
  * DIR/out.R.txt gets:
  *   status
@@ -75,11 +76,12 @@ int main(int argc, char **argv) {
     MPI_Init_thread(&argc, &argv, MPI_THREAD_SERIALIZED, &provided);
     int rank;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
-    if (argc != 5) {
-        fprintf(stderr, "usage: distributed DIR ORDER OPTIMIZE FAIL_RANK\n");
+    if (argc != 5 && argc != 6) {
+        fprintf(stderr, "usage: distributed DIR ORDER OPTIMIZE FAIL_RANK [ZERO_RANK]\n");
         MPI_Abort(MPI_COMM_WORLD, 2);
     }
     int order = atoi(argv[2]), optimize = atoi(argv[3]), fail_rank = atoi(argv[4]);
+    int zero_rank = argc == 6 ? atoi(argv[5]) : -1;
     char path[4096];
     snprintf(path, sizeof path, "%s/part.%d.txt", argv[1], rank);
     FILE *f = fopen(path, "r");
@@ -137,7 +139,7 @@ int main(int argc, char **argv) {
     double *before = must(malloc(sizeof(double) * n_before * dim));
     hoc_mesh_get_nodes(mesh, HOC_ORDERING_NATIVE, n_before, before);
 
-    st = hoc_mesh_run_increments(mesh, HOC_DEFAULT_INCREMENTS);
+    st = hoc_mesh_run_increments(mesh, rank == zero_rank ? 0 : HOC_DEFAULT_INCREMENTS);
     char message[4096];
     snprintf(message, sizeof message, "%s", hoc_mesh_last_error(mesh));
 

@@ -33,7 +33,7 @@ import pytest
 from test_mpi import BIN, MPIRUN, REPO, read_msh_nodes_and_cells, serial, smallest_edge
 
 MPI_LIB = Path(os.environ.get("HOCURVE_MPI_LIB", REPO / "target" / "mpi" / "release"))
-HOC_OK, HOC_ERROR_PROJECTION = 0, 4
+HOC_OK, HOC_ERROR_INVALID_ARGUMENT, HOC_ERROR_PROJECTION = 0, 2, 4
 NODE_TOL = 1e-4
 
 CASES = {
@@ -115,10 +115,10 @@ def write_shares(d, dim, nodes, cells, facets, part, n, tag, shape):
     return min(holders)
 
 
-def run(program, d, dim, n, order, optimize, fail_rank=-1):
+def run(program, d, dim, n, order, optimize, fail_rank=-1, *more):
     """Each process's output (see distributed.c)."""
     r = subprocess.run([MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np", str(n), str(program), str(d),
-                        str(order), str(int(optimize == "on")), str(fail_rank)],
+                        str(order), str(int(optimize == "on")), str(fail_rank), *map(str, more)],
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     outs = []
@@ -238,3 +238,14 @@ def test_a_projector_failing_on_one_process_fails_the_run_alike_everywhere(progr
         assert f"process {holder}" in outs[0]["message"] or holder == 0, outs[0]["message"]
         assert "callback returned 7" in outs[0]["message"], outs[0]["message"]
         assert all(o["unchanged"] for o in outs)
+
+
+def test_a_setting_refused_on_one_process_is_refused_on_all(programs, tmp_path):
+    # Process 1 alone asks for 0 increments: no process is left waiting for it.
+    name, tag, shape, _ = CASES["plate-2d"]
+    dim, nodes, cells, facets = read_msh(REPO / "tests" / "data" / name)
+    write_shares(tmp_path, dim, nodes, cells, facets, partition(dim, nodes, cells, 3, "slabs", shape), 3, tag, shape)
+    outs = run(programs["c"], tmp_path, dim, 3, 2, "on", -1, 1)
+    assert [o["status"] for o in outs] == [HOC_ERROR_INVALID_ARGUMENT] * 3
+    assert {o["message"] for o in outs} == {"invalid input: increments must be >= 1"}
+    assert all(o["unchanged"] for o in outs)
