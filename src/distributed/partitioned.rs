@@ -90,22 +90,21 @@ pub fn run(session: &mut Session, increments: usize) -> Result<()> {
     super::petsc::initialize_on(Some(host)).map_err(|e| Error::solver(SolverFailure::Setup, e))?;
     agree(&comm, check(session, increments))?;
     // Every process's settings must be process 0's.
-    let mut mine = settings(session, increments).into_bytes();
-    let mut len = mine.len() as u64;
-    comm.process_at_rank(0).broadcast_into(&mut len);
-    let mut first = if comm.rank() == 0 { mine.clone() } else { vec![0u8; len as usize] };
-    comm.process_at_rank(0).broadcast_into(&mut first[..]);
+    let mine = settings(session, increments);
+    let mut wire = Wire::default();
+    if comm.rank() == 0 {
+        wire.text(&mine);
+    }
+    broadcast(&comm, &mut wire);
+    let first = Reader::new(wire.ints, wire.floats).text();
     let same = if first == mine {
         Ok(())
     } else {
         Err(Error::InvalidInput(format!(
-            "the settings differ between processes: process 0 has {}, process {} has {}",
-            String::from_utf8_lossy(&first),
-            comm.rank(),
-            String::from_utf8_lossy(&mine)
+            "the settings differ between processes: process 0 has {first}, process {} has {mine}",
+            comm.rank()
         )))
     };
-    mine.clear();
     agree(&comm, same)?;
     let share = Share::of(session);
     if comm.rank() == 0 {
@@ -320,9 +319,7 @@ fn lead(session: &mut Session, comm: SimpleCommunicator, own: Share, increments:
     let size = comm.size() as usize;
     let mut shares = vec![own];
     for r in 1..size {
-        let from = comm.process_at_rank(r as i32);
-        let (ints, _) = from.receive_vec::<u64>();
-        let (floats, _) = from.receive_vec::<f64>();
+        let (ints, floats) = receive(&comm, r);
         shares.push(Share::decode(ints, floats));
     }
     let lead = Arc::new(Lead::new(comm.duplicate()));
@@ -347,10 +344,7 @@ fn lead(session: &mut Session, comm: SimpleCommunicator, own: Share, increments:
     let report = curved.report().expect("a curved session has a report");
     let mut wire = Wire::default();
     encode_report(&mut wire, report);
-    let mut len = [wire.ints.len() as u64, wire.floats.len() as u64];
-    comm.process_at_rank(0).broadcast_into(&mut len[..]);
-    comm.process_at_rank(0).broadcast_into(&mut wire.ints[..]);
-    comm.process_at_rank(0).broadcast_into(&mut wire.floats[..]);
+    broadcast(&comm, &mut wire);
     let curved_shares = split_curved(&curved, &whole, size);
     let mut mine = None;
     for (r, s) in curved_shares.into_iter().enumerate() {
@@ -358,9 +352,7 @@ fn lead(session: &mut Session, comm: SimpleCommunicator, own: Share, increments:
             mine = Some(s);
         } else {
             let (ints, floats) = s.encode();
-            let to = comm.process_at_rank(r as i32);
-            to.send(&ints[..]);
-            to.send(&floats[..]);
+            send(&comm, r, &ints, &floats);
         }
     }
     mine.expect("process 0 has a share").adopt_into(session, report.clone());
@@ -400,24 +392,17 @@ fn curve_whole(
 
 fn follow(session: &mut Session, comm: SimpleCommunicator, share: Share) -> Result<()> {
     let (ints, floats) = share.encode();
-    let root = comm.process_at_rank(0);
-    root.send(&ints[..]);
-    root.send(&floats[..]);
+    send(&comm, 0, &ints, &floats);
     let world = super::World(comm.duplicate());
     session.install(move |projector| {
         let world = world;
         serve(world.0, projector.map(|p| p as &dyn Projector))
     })??;
     agree(&comm, Ok(()))?;
-    let mut len = [0u64; 2];
-    root.broadcast_into(&mut len[..]);
-    let mut ints = vec![0u64; len[0] as usize];
-    let mut floats = vec![0f64; len[1] as usize];
-    root.broadcast_into(&mut ints[..]);
-    root.broadcast_into(&mut floats[..]);
-    let report = decode_report(&mut Reader::new(ints, floats), session);
-    let (ints, _) = root.receive_vec::<u64>();
-    let (floats, _) = root.receive_vec::<f64>();
+    let mut wire = Wire::default();
+    broadcast(&comm, &mut wire);
+    let report = decode_report(&mut Reader::new(wire.ints, wire.floats), session);
+    let (ints, floats) = receive(&comm, 0);
     CurvedShare::decode(ints, floats, session)?.adopt_into(session, report);
     Ok(())
 }
@@ -561,6 +546,31 @@ fn constraint_of(code: &[u64]) -> NodeConstraint {
         [0, _, _] => NodeConstraint::Free,
         _ => NodeConstraint::Fixed,
     }
+}
+
+/// Process 0's `wire` on every process (the others pass an empty one).
+fn broadcast(comm: &SimpleCommunicator, wire: &mut Wire) {
+    let root = comm.process_at_rank(0);
+    let mut len = [wire.ints.len() as u64, wire.floats.len() as u64];
+    root.broadcast_into(&mut len[..]);
+    wire.ints.resize(len[0] as usize, 0);
+    wire.floats.resize(len[1] as usize, 0.0);
+    root.broadcast_into(&mut wire.ints[..]);
+    root.broadcast_into(&mut wire.floats[..]);
+}
+
+/// A message of integers and floats to process `rank`, and from it.
+fn send(comm: &SimpleCommunicator, rank: usize, ints: &[u64], floats: &[f64]) {
+    let to = comm.process_at_rank(rank as i32);
+    to.send(ints);
+    to.send(floats);
+}
+
+fn receive(comm: &SimpleCommunicator, rank: usize) -> (Vec<u64>, Vec<f64>) {
+    let from = comm.process_at_rank(rank as i32);
+    let (ints, _) = from.receive_vec::<u64>();
+    let (floats, _) = from.receive_vec::<f64>();
+    (ints, floats)
 }
 
 /// Integers and floats of a message, written in order.
