@@ -572,14 +572,25 @@ pub unsafe extern "C" fn hoc_mesh_create(
     cells: *const i64,
     out: *mut *mut HocMesh,
 ) -> HocStatus {
+    create_handle(out, || {
+        let linear = linear_mesh(dim, n_vertices, coords, n_cells, cells)?;
+        Session::try_new(linear).map_err(mesh_err)
+    })
+}
+
+/// Set `*out` to a handle on the session `make` makes, or to NULL with the
+/// error kept per thread.
+unsafe fn create_handle(
+    out: *mut *mut HocMesh,
+    make: impl FnOnce() -> std::result::Result<Session, (HocStatus, String)>,
+) -> HocStatus {
     if out.is_null() {
         return guard(std::ptr::null(), || Err(null("out")));
     }
     *out = std::ptr::null_mut();
     let mut created = None;
     let status = guard(std::ptr::null(), || {
-        let linear = linear_mesh(dim, n_vertices, coords, n_cells, cells)?;
-        created = Some(Session::try_new(linear).map_err(mesh_err)?);
+        created = Some(make()?);
         Ok(())
     });
     if let Some(session) = created {
@@ -656,25 +667,15 @@ pub unsafe extern "C" fn hoc_mesh_create_distributed(
     cells: *const i64,
     out: *mut *mut HocMesh,
 ) -> HocStatus {
-    if out.is_null() {
-        return guard(std::ptr::null(), || Err(null("out")));
-    }
-    *out = std::ptr::null_mut();
-    let mut created = None;
-    let status = guard(std::ptr::null(), || {
+    create_handle(out, || {
         let local = (|| {
             let linear = linear_mesh(dim, n_vertices, coords, n_cells, cells)?;
             let ids = slice(global_ids, checked_count(n_vertices, "n_vertices")?, "global_ids")?;
             let ids = indices(ids, "global_ids")?.into_iter().map(|g| g as u64).collect();
             Session::try_new_partition(linear, comm, ids).map_err(mesh_err)
         })();
-        created = Some(create_distributed(comm, local)?);
-        Ok(())
-    });
-    if let Some(session) = created {
-        *out = new_handle(session);
-    }
-    status
+        create_distributed(comm, local)
+    })
 }
 
 /// Every process's outcome of making its share, agreed: all fail with the
