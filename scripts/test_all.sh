@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # The project's whole test run (the README's test command, and CI's):
 #   0. system packages (scripts/apt_deps.sh; needs root or sudo, skipped when present)
-#   1. cargo build --release     (the binary the Python suite drives)
+#   1. cargo build --release     (the binary the Python suite drives), then
+#      the README's main job, `cargo run --release -- demo`, into a temporary
+#      directory: it must write its two meshes and its report
 #   2. cargo test --release      (unit, integration and doc tests, header check)
 #   3. pytest -q tests/python    (end-to-end: gmsh, meshio and VTK read what
 #                                 hocurve writes; quality agrees with gmsh)
@@ -17,7 +19,7 @@
 #   7. scripts/fuzz.sh           (cargo-fuzz: the .msh reader and the C ABI call
 #                                 sequence, HOCURVE_FUZZ_SECONDS each, default
 #                                 60; HOCURVE_SKIP_FUZZ=1 skips it)
-# Steps 2-7 all run even if one fails; the exit status is non-zero if
+# The demo and steps 2-7 all run even if one fails; the exit status is non-zero if
 # anything failed. The Python venv is made (or reused) by setup_python.sh.
 set -uo pipefail
 
@@ -39,6 +41,17 @@ if ! cargo build --release; then
     echo "test_all: cargo build --release failed" >&2
     exit 1
 fi
+
+step "the main job: cargo run --release -- demo"
+demo_dir="$(mktemp -d)"
+if cargo run --release -- demo --output-dir "$demo_dir" && [ -s "$demo_dir/demo-2d.vtu" ] &&
+    [ -s "$demo_dir/demo-3d.vtu" ] && [ -s "$demo_dir/demo-report.json" ]; then
+    demo_rc=0
+else
+    echo "test_all: the demo did not write demo-2d.vtu, demo-3d.vtu and demo-report.json" >&2
+    demo_rc=1
+fi
+rm -rf "$demo_dir"
 
 step "cargo test --release"
 cargo test --release
@@ -90,10 +103,11 @@ if [ "${HOCURVE_SKIP_FUZZ:-0}" != 1 ]; then
 fi
 
 step "summary"
+echo "demo:       $([ $demo_rc -eq 0 ] && echo ok || echo FAILED)"
 echo "cargo test: $([ $cargo_rc -eq 0 ] && echo ok || echo "FAILED (exit $cargo_rc)")"
 echo "pytest:     $([ $py_rc -eq 0 ] && echo ok || echo "FAILED (exit $py_rc)")"
 echo "Python pkg: $([ $pkg_rc -eq 0 ] && echo ok || echo "FAILED (exit $pkg_rc)")"
 echo "C tests:    $([ $c_rc -eq 0 ] && echo ok || echo "FAILED (exit $c_rc)")"
 echo "MPI:        $([ $mpi_rc -eq 0 ] && echo ok || echo "FAILED (exit $mpi_rc)")"
 echo "fuzzing:    $([ "${HOCURVE_SKIP_FUZZ:-0}" = 1 ] && echo skipped || { [ $fuzz_rc -eq 0 ] && echo ok || echo "FAILED (exit $fuzz_rc)"; })"
-[ "$cargo_rc" -eq 0 ] && [ "$py_rc" -eq 0 ] && [ "$pkg_rc" -eq 0 ] && [ "$c_rc" -eq 0 ] && [ "$mpi_rc" -eq 0 ] && [ "$fuzz_rc" -eq 0 ]
+[ "$demo_rc" -eq 0 ] && [ "$cargo_rc" -eq 0 ] && [ "$py_rc" -eq 0 ] && [ "$pkg_rc" -eq 0 ] && [ "$c_rc" -eq 0 ] && [ "$mpi_rc" -eq 0 ] && [ "$fuzz_rc" -eq 0 ]
