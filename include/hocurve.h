@@ -594,7 +594,7 @@ HocStatus hoc_mesh_create(int dim, size_t n_vertices, const double *coords, size
  * Create a handle for this process's share of a mesh spread over the
  * processes of an MPI communicator. Collective: every process of `comm`
  * calls it with its own cells; all succeed, or all fail with the first
- * failing process's status and message. Needs a library built with MPI
+ * failing process's status and message (a NULL `out` included). Needs a library built with MPI
  * (the `mpi` feature; otherwise HOC_ERROR_INVALID_ARGUMENT) and MPI
  * initialised with MPI_Init_thread at MPI_THREAD_SERIALIZED or above.
  *

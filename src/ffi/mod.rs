@@ -572,28 +572,31 @@ pub unsafe extern "C" fn hoc_mesh_create(
     cells: *const i64,
     out: *mut *mut HocMesh,
 ) -> HocStatus {
-    create_handle(out, || {
+    create_handle(out, |out_is_null| {
+        if out_is_null {
+            return Err(null("out"));
+        }
         let linear = linear_mesh(dim, n_vertices, coords, n_cells, cells)?;
         Session::try_new(linear).map_err(mesh_err)
     })
 }
 
 /// Set `*out` to a handle on the session `make` makes, or to NULL with the
-/// error kept per thread.
+/// error kept per thread. `make` is told whether `out` is NULL, and runs
+/// either way (a collective call must reach every process's agreement).
 unsafe fn create_handle(
     out: *mut *mut HocMesh,
-    make: impl FnOnce() -> std::result::Result<Session, (HocStatus, String)>,
+    make: impl FnOnce(bool) -> std::result::Result<Session, (HocStatus, String)>,
 ) -> HocStatus {
-    if out.is_null() {
-        return guard(std::ptr::null(), || Err(null("out")));
+    if !out.is_null() {
+        *out = std::ptr::null_mut();
     }
-    *out = std::ptr::null_mut();
     let mut created = None;
     let status = guard(std::ptr::null(), || {
-        created = Some(make()?);
+        created = Some(make(out.is_null())?);
         Ok(())
     });
-    if let Some(session) = created {
+    if let (Some(session), false) = (created, out.is_null()) {
         *out = new_handle(session);
     }
     status
@@ -629,7 +632,7 @@ fn new_handle(session: Session) -> *mut HocMesh {
 /// Create a handle for this process's share of a mesh spread over the
 /// processes of an MPI communicator. Collective: every process of `comm`
 /// calls it with its own cells; all succeed, or all fail with the first
-/// failing process's status and message. Needs a library built with MPI
+/// failing process's status and message (a NULL `out` included). Needs a library built with MPI
 /// (the `mpi` feature; otherwise HOC_ERROR_INVALID_ARGUMENT) and MPI
 /// initialised with MPI_Init_thread at MPI_THREAD_SERIALIZED or above.
 ///
@@ -667,8 +670,11 @@ pub unsafe extern "C" fn hoc_mesh_create_distributed(
     cells: *const i64,
     out: *mut *mut HocMesh,
 ) -> HocStatus {
-    create_handle(out, || {
+    create_handle(out, |out_is_null| {
         let local = (|| {
+            if out_is_null {
+                return Err(null("out"));
+            }
             let linear = linear_mesh(dim, n_vertices, coords, n_cells, cells)?;
             let ids = slice(global_ids, checked_count(n_vertices, "n_vertices")?, "global_ids")?;
             let ids = indices(ids, "global_ids")?.into_iter().map(|g| g as u64).collect();

@@ -2,7 +2,7 @@
  * (hoc_mesh_create_distributed), with its own projector, curves it with the
  * other processes, and writes what its handle then holds.
  *
- *   mpirun -np N distributed DIR ORDER OPTIMIZE FAIL_RANK [ZERO_RANK]
+ *   mpirun -np N distributed DIR ORDER OPTIMIZE FAIL_RANK [ZERO_RANK [NULL_RANK]]
  *
  * DIR/part.R.txt is process R's share (written by test_distributed.py):
  *   dim n_vertices n_cells n_facets n_shapes
@@ -11,7 +11,8 @@
  *   n_facets lines:   dim local vertex indices, entity tag
  *   n_shapes lines:   tag cx cy cz r   (a circle or sphere: the projector)
  * The process FAIL_RANK (-1: none) has a projector that always fails; the
- * process ZERO_RANK (if given) asks for 0 increments.
+ * process ZERO_RANK (if given) asks for 0 increments; the process NULL_RANK
+ * (if given) passes NULL for the handle's address to the create call.
  *
  * DIR/out.R.txt gets:
  *   status
@@ -76,12 +77,12 @@ int main(int argc, char **argv) {
     MPI_Init_thread(&argc, &argv, MPI_THREAD_SERIALIZED, &provided);
     int rank;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
-    if (argc != 5 && argc != 6) {
-        fprintf(stderr, "usage: distributed DIR ORDER OPTIMIZE FAIL_RANK [ZERO_RANK]\n");
+    if (argc < 5 || argc > 7) {
+        fprintf(stderr, "usage: distributed DIR ORDER OPTIMIZE FAIL_RANK [ZERO_RANK [NULL_RANK]]\n");
         MPI_Abort(MPI_COMM_WORLD, 2);
     }
     int order = atoi(argv[2]), optimize = atoi(argv[3]), fail_rank = atoi(argv[4]);
-    int zero_rank = argc == 6 ? atoi(argv[5]) : -1;
+    int zero_rank = argc >= 6 ? atoi(argv[5]) : -1, null_rank = argc == 7 ? atoi(argv[6]) : -1;
     char path[4096];
     snprintf(path, sizeof path, "%s/part.%d.txt", argv[1], rank);
     FILE *f = fopen(path, "r");
@@ -122,10 +123,17 @@ int main(int argc, char **argv) {
     shapes.dim = dim;
 
     HocMesh *mesh = NULL;
-    HocStatus st = hoc_mesh_create_distributed(MPI_Comm_c2f(MPI_COMM_WORLD), dim, nv, coords, ids, nc, cells, &mesh);
+    HocStatus st = hoc_mesh_create_distributed(MPI_Comm_c2f(MPI_COMM_WORLD), dim, nv, coords, ids, nc, cells,
+                                               rank == null_rank ? NULL : &mesh);
     if (st != HOC_OK) {
-        fprintf(stderr, "rank %d: create: %s\n", rank, hoc_mesh_last_error(NULL));
-        MPI_Abort(MPI_COMM_WORLD, 1);
+        /* Every process fails alike: write that, without a mesh. */
+        snprintf(path, sizeof path, "%s/out.%d.txt", argv[1], rank);
+        FILE *o = fopen(path, "w");
+        if (!o) MPI_Abort(MPI_COMM_WORLD, 2);
+        fprintf(o, "%d\n%s\n%d\n", st, hoc_mesh_last_error(NULL), mesh == NULL);
+        fclose(o);
+        MPI_Finalize();
+        return 0;
     }
     if (hoc_mesh_set_boundary(mesh, nf, facets, tags) != HOC_OK ||
         hoc_mesh_set_projector(mesh, project, &shapes) != HOC_OK ||

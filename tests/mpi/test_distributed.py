@@ -33,7 +33,7 @@ import pytest
 from test_mpi import BIN, MPIRUN, REPO, read_msh_nodes_and_cells, serial, smallest_edge
 
 MPI_LIB = Path(os.environ.get("HOCURVE_MPI_LIB", REPO / "target" / "mpi" / "release"))
-HOC_OK, HOC_ERROR_INVALID_ARGUMENT, HOC_ERROR_PROJECTION = 0, 2, 4
+HOC_OK, HOC_ERROR_NULL_POINTER, HOC_ERROR_INVALID_ARGUMENT, HOC_ERROR_PROJECTION = 0, 1, 2, 4
 NODE_TOL = 1e-4
 
 CASES = {
@@ -249,3 +249,14 @@ def test_a_setting_refused_on_one_process_is_refused_on_all(programs, tmp_path):
     assert [o["status"] for o in outs] == [HOC_ERROR_INVALID_ARGUMENT] * 3
     assert {o["message"] for o in outs} == {"invalid input: increments must be >= 1"}
     assert all(o["unchanged"] for o in outs)
+
+
+def test_a_null_handle_address_on_one_process_fails_the_create_on_all(programs, tmp_path):
+    # Process 2 alone passes NULL for the handle's address: no process is left waiting.
+    name, tag, shape, _ = CASES["plate-2d"]
+    dim, nodes, cells, facets = read_msh(REPO / "tests" / "data" / name)
+    write_shares(tmp_path, dim, nodes, cells, facets, partition(dim, nodes, cells, 3, "slabs", shape), 3, tag, shape)
+    outs = run(programs["c"], tmp_path, dim, 3, 2, "on", -1, -1, 2)
+    assert [o["status"] for o in outs] == [HOC_ERROR_NULL_POINTER] * 3
+    assert {o["message"] for o in outs} == {"out is NULL"}
+    assert all(o["unchanged"] for o in outs), "no handle is made"
