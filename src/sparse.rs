@@ -101,3 +101,53 @@ impl SparseRows {
         SparseRows { n_rows: self.n_cols, n_cols: self.n_rows, row_ptr: ptr, col, val }
     }
 }
+
+/// Disjoint groups of nodes (node k owns the matrix rows k·b .. k·b + b for
+/// nodal blocks of size b): group g is `nodes[ptr[g]..ptr[g + 1]]`.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct NodeGroups {
+    pub ptr: Vec<usize>,
+    pub nodes: Vec<u32>,
+}
+
+impl NodeGroups {
+    /// Groups from lists of nodes; a node listed again (in the same or a
+    /// later list) is kept only where it first appears, and groups left with
+    /// fewer than two nodes are dropped (a nodal block smooths those).
+    pub fn from_lists(lists: &[Vec<u32>], n_nodes: usize) -> NodeGroups {
+        let mut taken = vec![false; n_nodes];
+        let mut out = NodeGroups { ptr: vec![0], nodes: Vec::new() };
+        for list in lists {
+            let start = out.nodes.len();
+            for &v in list {
+                if !std::mem::replace(&mut taken[v as usize], true) {
+                    out.nodes.push(v);
+                }
+            }
+            match out.nodes.len() - start {
+                0 => {}
+                1 => {
+                    taken[out.nodes[start] as usize] = false;
+                    out.nodes.truncate(start);
+                }
+                _ => out.ptr.push(out.nodes.len()),
+            }
+        }
+        out
+    }
+
+    /// Number of groups.
+    pub fn len(&self) -> usize {
+        self.ptr.len().saturating_sub(1)
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The nodes of group `g`.
+    pub fn group(&self, g: usize) -> &[u32] {
+        &self.nodes[self.ptr[g]..self.ptr[g + 1]]
+    }
+}
+

@@ -15,6 +15,7 @@
 mod condense;
 mod hyperelastic;
 mod kernel;
+mod lines;
 pub mod transfer;
 
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -24,7 +25,8 @@ use rayon::prelude::*;
 pub use condense::{condense_element, CondenseWorkspace, InteriorRecovery, LocalSplit};
 pub use hyperelastic::{MaterialKernel, TangentMode};
 pub use kernel::LinearElasticKernel;
-pub use transfer::multigrid_levels;
+pub use lines::{cell_lines, line_groups, STRETCHED};
+pub use transfer::{multigrid_levels, multigrid_levels_with_lines};
 
 use crate::mesh::{HighOrderMesh, NodeConstraint};
 use crate::sparse::SymmetricCsc;

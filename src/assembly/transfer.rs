@@ -15,10 +15,11 @@
 
 use std::collections::HashMap;
 
+use super::lines::line_groups;
 use super::DofMap;
 use crate::mesh::{HighOrderMesh, NodeConstraint};
 use crate::reference::{LagrangeBasis, NodeSet};
-use crate::sparse::{SparseRows, SymmetricCsc};
+use crate::sparse::{NodeGroups, SparseRows, SymmetricCsc};
 
 /// The orders of the p-multigrid hierarchy below `p`: the even orders below
 /// p, every other one, then 1 (6 → 4 → 2 → 1, 5 → 4 → 2 → 1, 3 → 2 → 1).
@@ -142,7 +143,19 @@ pub fn prolongation(
 /// per coarse level, from the finest, the prolongation from that level to the
 /// one above and the lower-triangle pattern of its Galerkin operator.
 pub fn multigrid_levels(mesh: &HighOrderMesh, dofs: &DofMap) -> Vec<(SparseRows, SymmetricCsc)> {
+    multigrid_levels_with_lines(mesh, dofs, &[]).0
+}
+
+/// [`multigrid_levels`], and the nodes of the cell `lines`
+/// ([`super::cell_lines`]) on the fine level and on each coarse level, for
+/// the smoother's line blocks.
+pub fn multigrid_levels_with_lines(
+    mesh: &HighOrderMesh,
+    dofs: &DofMap,
+    lines: &[Vec<usize>],
+) -> (Vec<(SparseRows, SymmetricCsc)>, Vec<NodeGroups>) {
     let mut out = Vec::new();
+    let mut groups = vec![line_groups(mesh, dofs, lines)];
     let mut above: Option<(HighOrderMesh, DofMap)> = None;
     for q in coarse_orders(mesh.order) {
         let cm = coarse_mesh(mesh, q);
@@ -158,9 +171,10 @@ pub fn multigrid_levels(mesh: &HighOrderMesh, dofs: &DofMap) -> Vec<(SparseRows,
             Some((am, ad)) => prolongation(am, ad, &cm, &cd),
         };
         out.push((p, cd.pattern(&cm)));
+        groups.push(if q > 1 { line_groups(&cm, &cd, lines) } else { NodeGroups::default() });
         above = Some((cm, cd));
     }
-    out
+    (out, groups)
 }
 
 #[cfg(test)]

@@ -50,7 +50,7 @@ use super::bsr::{BlockSym32, Operator};
 use super::pcg::{pcg, BlockJacobi, PcgFailure, PcgParams, SymmetricOperator, WithValues};
 use super::pmg::{Chebyshev, ChebyshevParams, Hierarchy, VCycle};
 use super::SparseRows;
-use super::{DirectSolver, FallbackReason, LinearSolver, SolveStats, SolvedBy, SymmetricCsc};
+use super::{DirectSolver, FallbackReason, LinearSolver, NodeGroups, SolveStats, SolvedBy, SymmetricCsc};
 use crate::{Error, Result, SolverFailure};
 
 /// Largest system the iterative solver hands to the direct one when PCG breaks
@@ -201,6 +201,8 @@ pub struct IterativeSolver {
     fine32: Option<BlockSym32>,
     /// PCG iterations of the last solve with the default preconditioner.
     last_iterations: Option<usize>,
+    /// Line blocks of the fine level's smoother ([`Self::with_lines`]).
+    lines: Option<NodeGroups>,
 }
 
 impl IterativeSolver {
@@ -235,7 +237,24 @@ impl IterativeSolver {
             direct: None,
             power: None,
             last_iterations: None,
+            lines: None,
         })
+    }
+
+    /// Smooth in line blocks: `lines[0]` on the fine level, `lines[k]` on
+    /// coarse level k (groups of nodes, nodal blocks of size `block`; the
+    /// coarsest level, factored, needs none). The safe mode of a restart
+    /// keeps nodal blocks.
+    pub fn with_lines(mut self, mut lines: Vec<NodeGroups>) -> IterativeSolver {
+        if lines.is_empty() {
+            return self;
+        }
+        let coarse = lines.split_off(1);
+        self.lines = lines.pop().filter(|g| !g.is_empty());
+        if let Some(c) = &mut self.coarse {
+            c.set_lines(coarse);
+        }
+        self
     }
 
     /// Whether `x` solves the system to PCG's tolerance: ‖b − A x‖ ≤ rtol ‖b‖, b ≠ 0.
@@ -269,7 +288,8 @@ impl IterativeSolver {
             }
             _ => &exact,
         };
-        let jacobi = diagonal_blocks(pattern, values, self.block)?;
+        let lines = if mode == Mode::Fast { self.lines.as_ref() } else { None };
+        let jacobi = diagonal_blocks(pattern, values, self.block, lines)?;
         let smoother = mode.smoother(fine, exact, jacobi, self.params.smoother, start)?;
         if let Some(c) = &mut self.coarse {
             mode.update_coarse(c, exact, self.params.reuse_coarse)?;
@@ -311,8 +331,9 @@ fn diagonal_blocks(
     pattern: &SymmetricCsc,
     values: &[f64],
     block: usize,
+    lines: Option<&NodeGroups>,
 ) -> std::result::Result<BlockJacobi, Breakdown> {
-    BlockJacobi::try_new(pattern, values, block).map_err(|error| Breakdown {
+    BlockJacobi::try_new_with_lines(pattern, values, block, lines).map_err(|error| Breakdown {
         reason: FallbackReason::MatrixNotPositive,
         iterations: 0,
         error,

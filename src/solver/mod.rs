@@ -17,11 +17,12 @@ mod cholesky;
 mod direct;
 mod external;
 mod iterative;
+mod lines;
 mod lu;
 pub(crate) mod metis;
 pub use metis::partition;
 
-pub use crate::sparse::{SparseRows, SymmetricCsc};
+pub use crate::sparse::{NodeGroups, SparseRows, SymmetricCsc};
 pub use cholesky::{nested_dissection, node_block_size, DirectOrdering, SparseCholesky};
 pub use direct::DirectSolver;
 pub use external::{CsrView, ExternalAdapter, ExternalSolver, FullCsrPattern, LowerCscView, SystemSolver};

@@ -15,6 +15,8 @@
 
 use rayon::prelude::*;
 
+use super::lines::LineFactors;
+use super::NodeGroups;
 use super::SymmetricCsc;
 use crate::{Error, Result, SolverFailure};
 
@@ -411,18 +413,29 @@ pub struct BlockJacobi {
     /// Blocks shifted by [`BLOCK_SHIFT`] because they were nearly singular.
     #[cfg_attr(not(test), allow(dead_code))] // read by the tests
     regularised: usize,
+    /// Groups of nodes whose whole block is inverted instead (line smoothing).
+    lines: Option<LineFactors>,
 }
 
-/// R, block-diagonal and lower triangular, with R Rᵀ = D⁻¹ ([`BlockJacobi::inverse_factor`]).
-pub struct BlockFactor {
+/// R, block-diagonal, with R Rᵀ = D⁻¹ ([`BlockJacobi::inverse_factor`]).
+pub struct BlockFactor<'a> {
     block: usize,
-    /// Row-major lower factor of each block.
+    /// Row-major lower factor of each nodal block.
     r: Vec<f64>,
+    /// The line blocks' factors, which replace the nodal ones on their rows.
+    lines: Option<&'a LineFactors>,
 }
 
-impl BlockFactor {
+impl BlockFactor<'_> {
     /// y = R x, or y = Rᵀ x with `transposed`.
     pub fn apply_into(&self, x: &[f64], y: &mut [f64], transposed: bool) {
+        self.apply_nodal(x, y, transposed);
+        if let Some(lines) = self.lines {
+            lines.factor_into(x, y, transposed);
+        }
+    }
+
+    fn apply_nodal(&self, x: &[f64], y: &mut [f64], transposed: bool) {
         let (b, bb) = (self.block, self.block * self.block);
         y.par_chunks_mut(CHUNK * b).zip(x.par_chunks(CHUNK * b)).enumerate().for_each(|(i, (yc, xc))| {
             let r = &self.r[i * CHUNK * bb..];
@@ -449,6 +462,17 @@ impl BlockJacobi {
     /// [`NEAR_SINGULAR_PIVOT`] of its diagonal entry) is shifted by
     /// [`BLOCK_SHIFT`] first. Fails if a block is not positive definite.
     pub fn try_new(pattern: &SymmetricCsc, values: &[f64], block: usize) -> Result<BlockJacobi> {
+        Self::try_new_with_lines(pattern, values, block, None)
+    }
+
+    /// [`Self::try_new`], with the whole block of each group of `lines`
+    /// factored and inverted instead of its nodes' own blocks.
+    pub fn try_new_with_lines(
+        pattern: &SymmetricCsc,
+        values: &[f64],
+        block: usize,
+        lines: Option<&NodeGroups>,
+    ) -> Result<BlockJacobi> {
         let n = pattern.n;
         if !(1..=3).contains(&block) || !n.is_multiple_of(block) {
             return Err(Error::solver(
@@ -497,7 +521,11 @@ impl BlockJacobi {
                 }
             })
             .try_reduce(|| 0, |x, y| Ok(x + y))?;
-        Ok(BlockJacobi { block, inv, regularised })
+        let lines = match lines {
+            Some(groups) if !groups.is_empty() => Some(LineFactors::try_new(pattern, values, block, groups)?),
+            _ => None,
+        };
+        Ok(BlockJacobi { block, inv, regularised, lines })
     }
 
     /// Blocks that were shifted because nearly singular.
@@ -508,6 +536,13 @@ impl BlockJacobi {
 
     /// z = D⁻¹ r.
     pub fn apply_into(&self, r: &[f64], z: &mut [f64]) {
+        self.apply_nodal(r, z);
+        if let Some(lines) = &self.lines {
+            lines.solve_into(r, z);
+        }
+    }
+
+    fn apply_nodal(&self, r: &[f64], z: &mut [f64]) {
         let b = self.block;
         let bb = b * b;
         z.par_chunks_mut(CHUNK * b).zip(r.par_chunks(CHUNK * b)).enumerate().for_each(|(i, (zc, rc))| {
@@ -523,7 +558,7 @@ impl BlockJacobi {
 
     /// R with R Rᵀ = D⁻¹, block by block (the Cholesky factors of the
     /// inverted blocks): D⁻¹A is similar to the symmetric Rᵀ A R.
-    pub fn inverse_factor(&self) -> BlockFactor {
+    pub fn inverse_factor(&self) -> BlockFactor<'_> {
         let (b, bb) = (self.block, self.block * self.block);
         let mut r = vec![0.0; self.inv.len()];
         r.par_chunks_mut(bb).zip(self.inv.par_chunks(bb)).for_each(|(out, inv)| {
@@ -531,15 +566,16 @@ impl BlockJacobi {
             let (l, _) = cholesky_block(inv, b).expect("the inverse of an SPD block is SPD");
             out.copy_from_slice(&l[..bb]);
         });
-        BlockFactor { block: b, r }
+        BlockFactor { block: b, r, lines: self.lines.as_ref() }
     }
 
     /// ‖D⁻¹A‖_∞, the largest absolute row sum of D⁻¹A for the matrix `a`
     /// (D its blocks inverted here): an
     /// upper bound of every eigenvalue of D⁻¹A (Gershgorin), computed in
     /// double precision from the entries, so it cannot miss a mode the way a
-    /// power iteration can.
+    /// power iteration can. For nodal blocks only (D without lines).
     pub fn row_sum_bound(&self, a: WithValues) -> f64 {
+        debug_assert!(self.lines.is_none(), "the row-sum bound is of nodal blocks");
         let b = self.block;
         let bb = b * b;
         let n = a.n();

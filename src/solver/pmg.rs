@@ -19,7 +19,7 @@ use rayon::prelude::*;
 
 use super::bsr::Operator;
 use super::pcg::{axpby_in_place, dot, BlockJacobi, SymmetricOperator, WithValues};
-use super::{SparseCholesky, SparseRows, SymmetricCsc};
+use super::{NodeGroups, SparseCholesky, SparseRows, SymmetricCsc};
 use crate::{Error, Result, SolverFailure};
 
 /// Fine rows per chunk of W = A P in [`galerkin_product`].
@@ -168,14 +168,17 @@ pub struct Chebyshev {
 impl Chebyshev {
     /// Invert the diagonal blocks and estimate λ_max(D⁻¹A) by Lanczos
     /// (times 1.1: the estimate approaches λ_max from below).
+    #[cfg(test)]
     pub fn try_new(a: WithValues, block: usize, params: ChebyshevParams) -> Result<Chebyshev> {
-        Self::try_new_from(&a, a.pattern(), a.values(), block, params, None)
+        Self::try_with_jacobi(&a, BlockJacobi::try_new(a.pattern(), a.values(), block)?, params, None)
     }
 
-    /// [`Self::try_new`] with the Lanczos process started from the dominant
-    /// vector of a previous, similar matrix ([`Self::power_vector`]): then
-    /// `power_iterations / 6` steps (at least 2) suffice. `op` applies the
-    /// matrix (`pattern`, `values`) or an approximation of it (single precision).
+    /// The smoother for the inverted diagonal blocks `jacobi` (nodal or
+    /// line blocks) of the matrix that `op` applies (or an approximation of
+    /// it, single precision), with λ_max(D⁻¹A) estimated by Lanczos, times
+    /// 1.1. With `start`, the dominant vector of a previous, similar matrix
+    /// ([`Self::power_vector`]), `power_iterations / 6` steps (at least 2)
+    /// suffice.
     ///
     /// The warm start is what the sequence of load increments relies on, and
     /// its weak point: if the new matrix has a larger eigenvalue on a mode the
@@ -184,18 +187,6 @@ impl Chebyshev {
     /// quality 1e-5: hi = 3.14 against λ_max = 3.85 at p = 2, 4.89 against
     /// 5.37 at p = 4). PCG then sees rᵀz ≤ 0 or crawls, and
     /// [`super::IterativeSolver`] rebuilds with [`Self::try_new_safe`].
-    pub fn try_new_from(
-        op: &dyn Operator,
-        pattern: &SymmetricCsc,
-        values: &[f64],
-        block: usize,
-        params: ChebyshevParams,
-        start: Option<Vec<f64>>,
-    ) -> Result<Chebyshev> {
-        Self::try_with_jacobi(op, BlockJacobi::try_new(pattern, values, block)?, params, start)
-    }
-
-    /// [`Self::try_new_from`] with the diagonal blocks already inverted.
     pub fn try_with_jacobi(
         op: &dyn Operator,
         jacobi: BlockJacobi,
@@ -248,7 +239,7 @@ impl Chebyshev {
 
     /// A fresh Lanczos estimate of λ_max(D⁻¹A) from the fixed start vector
     /// (`steps` products with `op`), without the factor 1.1: to check a
-    /// warm-started estimate ([`Self::try_new_from`]).
+    /// warm-started estimate ([`Self::try_with_jacobi`]).
     pub fn cold_estimate(&self, op: &dyn Operator, steps: usize) -> Result<f64> {
         lambda_max_estimate(op, &self.jacobi, steps.max(1), None).map(|(lambda, _)| lambda)
     }
@@ -381,6 +372,8 @@ struct Level {
     op: SymmetricOperator,
     values: Vec<f64>,
     smoother: Option<Chebyshev>,
+    /// Line blocks of its smoother (not on the coarsest level).
+    lines: Option<NodeGroups>,
     chol: Option<(SparseCholesky, Vec<f64>)>,
     work: SmootherWork,
     s: Vec<f64>,
@@ -426,6 +419,7 @@ impl Hierarchy {
                 values: vec![0.0; pattern.nnz()],
                 pattern,
                 smoother: None,
+                lines: None,
                 chol,
                 work: SmootherWork { res: v(), d: v(), t: v(), z: v() },
                 s: v(),
@@ -435,6 +429,15 @@ impl Hierarchy {
             });
         }
         Ok(Hierarchy { levels: out, block, params, ready: false })
+    }
+
+    /// Smooth coarse level k (0 the finest coarse level) in the line
+    /// blocks `lines[k]` (in its fast mode; the safe mode keeps nodal blocks).
+    pub fn set_lines(&mut self, lines: Vec<NodeGroups>) {
+        for (l, g) in self.levels.iter_mut().zip(lines) {
+            l.lines = Some(g).filter(|g| !g.is_empty());
+        }
+        self.ready = false;
     }
 
     /// True once [`Self::try_update_with`] has succeeded.
@@ -459,7 +462,9 @@ impl Hierarchy {
             } else if safe {
                 l.smoother = Some(Chebyshev::try_new_safe(l.op.with(&l.pattern, &l.values), self.block, self.params)?);
             } else {
-                l.smoother = Some(Chebyshev::try_new(l.op.with(&l.pattern, &l.values), self.block, self.params)?);
+                let a = l.op.with(&l.pattern, &l.values);
+                let jacobi = BlockJacobi::try_new_with_lines(&l.pattern, &l.values, self.block, l.lines.as_ref())?;
+                l.smoother = Some(Chebyshev::try_with_jacobi(&a, jacobi, self.params, None)?);
             }
         }
         self.ready = true;
