@@ -25,8 +25,8 @@ use rayon::prelude::*;
 pub use condense::{condense_element, CondenseWorkspace, InteriorRecovery, LocalSplit};
 pub use hyperelastic::{MaterialKernel, TangentMode};
 pub use kernel::LinearElasticKernel;
-pub use lines::{cell_lines, line_groups, STRETCHED};
-pub use transfer::{multigrid_levels, multigrid_levels_with_lines};
+pub use lines::cell_lines;
+pub use transfer::multigrid_levels;
 
 use crate::mesh::{HighOrderMesh, NodeConstraint};
 use crate::sparse::SymmetricCsc;

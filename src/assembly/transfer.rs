@@ -141,15 +141,10 @@ pub fn prolongation(
 
 /// The p-multigrid hierarchy of `mesh` below its order ([`coarse_orders`]):
 /// per coarse level, from the finest, the prolongation from that level to the
-/// one above and the lower-triangle pattern of its Galerkin operator.
-pub fn multigrid_levels(mesh: &HighOrderMesh, dofs: &DofMap) -> Vec<(SparseRows, SymmetricCsc)> {
-    multigrid_levels_with_lines(mesh, dofs, &[]).0
-}
-
-/// [`multigrid_levels`], and the nodes of the cell `lines`
-/// ([`super::cell_lines`]) on the fine level and on each coarse level, for
-/// the smoother's line blocks.
-pub fn multigrid_levels_with_lines(
+/// one above and the lower-triangle pattern of its Galerkin operator; and
+/// the nodes of the cell `lines` ([`super::cell_lines`]; none: `&[]`) on the
+/// fine level and on each coarse level, for the smoother's line blocks.
+pub fn multigrid_levels(
     mesh: &HighOrderMesh,
     dofs: &DofMap,
     lines: &[Vec<usize>],
@@ -251,7 +246,7 @@ mod tests {
         // the order-4 nodes of cells whose order-2 nodes are all free.
         let mesh = mesh3d(4);
         let dofs = DofMap::new(&mesh);
-        let levels = multigrid_levels(&mesh, &dofs);
+        let (levels, _) = multigrid_levels(&mesh, &dofs, &[]);
         assert_eq!(levels.len(), 2);
         assert_eq!(coarse_orders(6), [4, 2, 1]);
         assert_eq!(coarse_orders(5), [4, 2, 1]);

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use super::parallel::{self, Collective, Parallel};
 use super::{Stage, Timings};
-use crate::assembly::{cell_lines, multigrid_levels_with_lines, DofMap, ElementKernel, System};
+use crate::assembly::{cell_lines, multigrid_levels, DofMap, ElementKernel, System};
 use crate::mesh::HighOrderMesh;
 use crate::quality;
 use crate::reference::{LagrangeBasis, NodeSet};
@@ -194,7 +194,7 @@ fn make_solver(
     // The free dofs of a node are consecutive: nodal blocks for the
     // smoother, and line blocks through stretched layers.
     let lines = cell_lines(mesh);
-    let (levels, groups) = multigrid_levels_with_lines(mesh, system.dofs(), &lines);
+    let (levels, groups) = multigrid_levels(mesh, system.dofs(), &lines);
     let solver = IterativeSolver::try_new(pattern, mesh.dim(), levels, IterativeParams::default())?;
     Ok(Box::new(solver.with_lines(groups)))
 }

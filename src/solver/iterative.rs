@@ -47,6 +47,7 @@
 //! (Galerkin products, coarsest factorisation) is about half of it.
 
 use super::bsr::{BlockSym32, Operator};
+use super::lines::LineFactors;
 use super::pcg::{pcg, BlockJacobi, PcgFailure, PcgParams, SymmetricOperator, WithValues};
 use super::pmg::{Chebyshev, ChebyshevParams, Hierarchy, VCycle};
 use super::SparseRows;
@@ -257,6 +258,18 @@ impl IterativeSolver {
         self
     }
 
+    /// The line blocks of the fine level factored for the matrix (`pattern`, `values`).
+    fn line_blocks(
+        &self,
+        pattern: &SymmetricCsc,
+        values: &[f64],
+    ) -> std::result::Result<Option<LineFactors>, Breakdown> {
+        self.lines
+            .as_ref()
+            .map(|g| LineFactors::try_new(pattern, values, self.block, g).map_err(not_positive))
+            .transpose()
+    }
+
     /// Whether `x` solves the system to PCG's tolerance: ‖b − A x‖ ≤ rtol ‖b‖, b ≠ 0.
     fn solves_already(&self, pattern: &SymmetricCsc, values: &[f64], rhs: &[f64], x: &[f64]) -> bool {
         let b = rhs.iter().map(|v| v * v).sum::<f64>().sqrt();
@@ -280,6 +293,7 @@ impl IterativeSolver {
     ) -> std::result::Result<usize, Breakdown> {
         let start = self.power.take();
         let warm = start.is_some();
+        let lines = if mode == Mode::Fast { self.line_blocks(pattern, values)? } else { None };
         let exact = self.op.with(pattern, values);
         let fine: &dyn Operator = match (&mut self.fine32, mode) {
             (Some(f), Mode::Fast) => {
@@ -288,7 +302,6 @@ impl IterativeSolver {
             }
             _ => &exact,
         };
-        let lines = if mode == Mode::Fast { self.lines.as_ref() } else { None };
         let jacobi = diagonal_blocks(pattern, values, self.block, lines)?;
         let smoother = mode.smoother(fine, exact, jacobi, self.params.smoother, start)?;
         if let Some(c) = &mut self.coarse {
@@ -331,13 +344,14 @@ fn diagonal_blocks(
     pattern: &SymmetricCsc,
     values: &[f64],
     block: usize,
-    lines: Option<&NodeGroups>,
+    lines: Option<LineFactors>,
 ) -> std::result::Result<BlockJacobi, Breakdown> {
-    BlockJacobi::try_new_with_lines(pattern, values, block, lines).map_err(|error| Breakdown {
-        reason: FallbackReason::MatrixNotPositive,
-        iterations: 0,
-        error,
-    })
+    BlockJacobi::try_new_with_lines(pattern, values, block, lines).map_err(not_positive)
+}
+
+/// A block of the matrix that is not positive definite: so is the matrix.
+fn not_positive(error: Error) -> Breakdown {
+    Breakdown { reason: FallbackReason::MatrixNotPositive, iterations: 0, error }
 }
 
 impl Mode {

@@ -16,7 +16,6 @@
 use rayon::prelude::*;
 
 use super::lines::LineFactors;
-use super::NodeGroups;
 use super::SymmetricCsc;
 use crate::{Error, Result, SolverFailure};
 
@@ -465,13 +464,14 @@ impl BlockJacobi {
         Self::try_new_with_lines(pattern, values, block, None)
     }
 
-    /// [`Self::try_new`], with the whole block of each group of `lines`
-    /// factored and inverted instead of its nodes' own blocks.
+    /// [`Self::try_new`], with the line blocks `lines` (each group's whole
+    /// block, factored from this matrix) inverted instead of their nodes'
+    /// own blocks.
     pub fn try_new_with_lines(
         pattern: &SymmetricCsc,
         values: &[f64],
         block: usize,
-        lines: Option<&NodeGroups>,
+        lines: Option<LineFactors>,
     ) -> Result<BlockJacobi> {
         let n = pattern.n;
         if !(1..=3).contains(&block) || !n.is_multiple_of(block) {
@@ -521,10 +521,6 @@ impl BlockJacobi {
                 }
             })
             .try_reduce(|| 0, |x, y| Ok(x + y))?;
-        let lines = match lines {
-            Some(groups) if !groups.is_empty() => Some(LineFactors::try_new(pattern, values, block, groups)?),
-            _ => None,
-        };
         Ok(BlockJacobi { block, inv, regularised, lines })
     }
 

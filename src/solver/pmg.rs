@@ -18,6 +18,7 @@
 use rayon::prelude::*;
 
 use super::bsr::Operator;
+use super::lines::LineFactors;
 use super::pcg::{axpby_in_place, dot, BlockJacobi, SymmetricOperator, WithValues};
 use super::{NodeGroups, SparseCholesky, SparseRows, SymmetricCsc};
 use crate::{Error, Result, SolverFailure};
@@ -463,7 +464,8 @@ impl Hierarchy {
                 l.smoother = Some(Chebyshev::try_new_safe(l.op.with(&l.pattern, &l.values), self.block, self.params)?);
             } else {
                 let a = l.op.with(&l.pattern, &l.values);
-                let jacobi = BlockJacobi::try_new_with_lines(&l.pattern, &l.values, self.block, l.lines.as_ref())?;
+                let lines = l.lines.as_ref().map(|g| LineFactors::try_new(&l.pattern, &l.values, self.block, g)).transpose()?;
+                let jacobi = BlockJacobi::try_new_with_lines(&l.pattern, &l.values, self.block, lines)?;
                 l.smoother = Some(Chebyshev::try_with_jacobi(&a, jacobi, self.params, None)?);
             }
         }
