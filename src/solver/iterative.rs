@@ -11,6 +11,12 @@
 //!   for ~1 s more per increment at 106k unknowns. The fine smoother follows
 //!   every matrix (its λ_max power iteration restarts from the previous
 //!   dominant vector: 2 steps, not 12).
+//! - Stretched boundary layers: with nodal blocks only, the iterations grew
+//!   with the stretching (2D layers at p = 4: 24 to 28 against 6 on an
+//!   isotropic mesh). The caller's lines of stretched cells
+//!   ([`Self::with_lines`]) make the smoother's blocks there whole lines of
+//!   nodes, factored for every matrix: 3 to 11 iterations at stretching 100
+//!   to 1000 in 2D and 3D, no more than 1.22 times the isotropic mesh's.
 //! - Chebyshev degree 3 on [λ_max/30, λ_max]: at p = 4 degrees 2/3/4 took
 //!   34/26/21 iterations (tolerance 1e-8), i.e. 170/182/189 products: flat, so 3.
 //! - The V-cycle's fine-level products use a single-precision nodal-block copy

@@ -12,8 +12,10 @@
 //! next level (A_c⁻¹ on the coarsest), where
 //! S is `degree` steps of Chebyshev iteration on D⁻¹A from zero over
 //! [λ_max/ratio, λ_max] (Adams, Brezina, Hu, Tuminaro 2003), D the nodal
-//! blocks of A; S is a polynomial in D⁻¹A times D⁻¹, hence symmetric, and the
-//! cycle costs 2·degree products with A.
+//! blocks of A, or on the nodes of a line through stretched layers the
+//! whole block of the line (`super::lines`, groups from the caller as the
+//! prolongations are); S is a polynomial in D⁻¹A times D⁻¹, hence
+//! symmetric, and the cycle costs 2·degree products with A.
 
 use rayon::prelude::*;
 
