@@ -6,9 +6,10 @@
 //! Jacobi) leaves the error that is smooth along those lines almost
 //! untouched, and the Krylov iterations grow with the stretching. A group is
 //! the nodes of a line of cells through the layers (the caller finds them:
-//! the solver sees only matrices), listed in line order so that its block
-//! is banded; its Cholesky factor is stored in envelope (skyline) form,
-//! which keeps the band.
+//! the solver sees only matrices); here its nodes are put in reverse
+//! Cuthill–McKee order, so that its block is banded, about one
+//! cross-section of the line wide, and its Cholesky factor is stored in
+//! envelope (skyline) form, which keeps the band.
 
 use rayon::prelude::*;
 
