@@ -858,7 +858,7 @@ impl PatchProblem<'_, '_> {
             return;
         }
         let mut work =
-            Scratch { xe: vec![0.0; self.npc * self.dim], ge: vec![0.0; self.npc * self.dim], trial: pos.to_vec() };
+            Scratch { trial: pos.to_vec(), ..Scratch::default() };
         let mut xe = vec![0.0; self.npc * self.dim];
         let mut t = vec![0.0; vars.n_vars];
         let mut jmin = self.min_det(pos, &mut xe);
@@ -891,25 +891,46 @@ impl PatchProblem<'_, '_> {
     }
 
     /// The energy at the variables `t` (its gradient into `g`), or None where it is infinite.
+    ///
+    /// The cells' energies and gradients are computed in parallel (in
+    /// chunks of [`CELLS_PER_TASK`], so a small patch stays on its thread),
+    /// then summed in the cells' order: the same sums, bit for bit, for any
+    /// number of threads. One large patch often takes most of a round.
     fn energy_grad(&self, vars: &Variables, t: &[f64], g: &mut [f64], delta: f64, work: &mut Scratch) -> Option<f64> {
-        let dim = self.dim;
+        let (dim, nd) = (self.dim, self.npc * self.dim);
         if !self.place(vars, t, &mut work.trial) {
             return None;
         }
+        let n = self.cells.len();
+        work.energy.resize(n, 0.0);
+        work.grads.resize(n * nd, 0.0);
+        let trial = &work.trial;
+        work.energy
+            .par_iter_mut()
+            .zip(work.grads.par_chunks_mut(nd))
+            .enumerate()
+            .with_min_len(CELLS_PER_TASK)
+            .try_for_each_init(
+                || vec![0.0; nd],
+                |xe, (k, (energy, ge))| {
+                    let (cell, loc) = self.cell(k);
+                    gather_moved(cell, loc, self.coords, trial, dim, xe);
+                    ge.fill(0.0);
+                    *energy = self.rule.energy_grad(&self.elements[k], xe, delta, ge)?;
+                    Some(())
+                },
+            )?;
         g.iter_mut().for_each(|v| *v = 0.0);
         let mut total = 0.0;
-        for k in 0..self.cells.len() {
-            let (cell, loc) = self.cell(k);
-            gather_moved(cell, loc, self.coords, &work.trial, dim, &mut work.xe);
-            work.ge.iter_mut().for_each(|v| *v = 0.0);
+        for (k, (energy, ge)) in work.energy.iter().zip(work.grads.chunks_exact(nd)).enumerate() {
             let w = self.weights[k];
-            total += w * self.rule.energy_grad(&self.elements[k], &work.xe, delta, &mut work.ge)?;
-            for (a, &j) in loc.iter().enumerate() {
+            total += w * energy;
+            for (a, &j) in self.cell(k).1.iter().enumerate() {
                 if j == usize::MAX {
                     continue;
                 }
                 for (m, tm) in vars.unknowns[j].tangents.iter().enumerate() {
-                    g[vars.offsets[j] + m] += w * (0..dim).map(|d| tm[d] * work.ge[a * dim + d]).sum::<f64>();
+                    g[vars.offsets[j] + m] += w * (0..dim).map(|d| tm[d] * ge[a * dim + d]).sum::<f64>();
                 }
             }
         }
@@ -1010,13 +1031,17 @@ impl Variables {
     }
 }
 
-/// Buffers of the energy evaluations: one cell's coordinates and gradient,
-/// and the moving nodes' trial positions.
+/// Buffers of the energy evaluations: the moving nodes' trial positions,
+/// and each cell's energy and gradient (by its nodes).
+#[derive(Default)]
 struct Scratch {
-    xe: Vec<f64>,
-    ge: Vec<f64>,
     trial: Vec<[f64; 3]>,
+    energy: Vec<f64>,
+    grads: Vec<f64>,
 }
+
+/// Cells of a patch that one task of the energy's evaluation takes at least.
+const CELLS_PER_TASK: usize = 32;
 
 /// Index of node `n` among the moving nodes (`free`, then `sliding`), or usize::MAX.
 fn position_in(free: &[usize], sliding: &[usize], n: usize) -> usize {
@@ -1166,7 +1191,7 @@ mod tests {
     /// An annulus at p = 3 whose interior high-order nodes are jittered
     /// (every cell stays valid), its straight positions, and its basis.
     fn jittered_annulus() -> (HighOrderMesh, Vec<f64>, LagrangeBasis) {
-        let case = crate::cases::annulus_2d(0.5, 1.0, 16, 3);
+        let case = crate::cases::annulus_2d(0.5, 1.0, 48, 3);
         let (linear, _) = crate::mesh::validate_and_orient(&case.mesh).unwrap();
         let topo = crate::mesh::Topology::new(&linear).unwrap();
         let nodes = NodeSet::new(topo.simplex, 3, NodeSpacing::Optimal);
@@ -1177,7 +1202,7 @@ mod tests {
             if mesh.constraint[n] == NodeConstraint::Free {
                 for d in 0..2 {
                     seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                    mesh.coords[2 * n + d] += 0.01 * ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5);
+                    mesh.coords[2 * n + d] += 0.003 * ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5);
                 }
             }
         }
@@ -1185,7 +1210,7 @@ mod tests {
     }
 
     #[test]
-    fn a_patch_energy_weighs_its_focused_cells_and_its_gradient_matches_finite_differences() {
+    fn a_patch_energy_weighs_its_focused_cells_its_gradient_matches_finite_differences_and_threads_do_not_change_it() {
         let (mesh, straight, basis) = jittered_annulus();
         let (dim, npc) = (2, mesh.nodes_per_cell());
         let sampling = quality::sampling_cache(&basis);
@@ -1221,7 +1246,7 @@ mod tests {
         let vars = Variables::new(unknowns);
         let problem = work.problem(None);
         let nm = patch.free.len() + patch.sliding.len();
-        let mut scratch = Scratch { xe: vec![0.0; npc * dim], ge: vec![0.0; npc * dim], trial: vec![[0.0; 3]; nm] };
+        let mut scratch = Scratch { trial: vec![[0.0; 3]; nm], ..Scratch::default() };
         let t: Vec<f64> = (0..vars.n_vars).map(|k| 1e-3 * (k as f64).sin()).collect();
         let mut g = vec![0.0; vars.n_vars];
         let e = problem.energy_grad(&vars, &t, &mut g, 0.0, &mut scratch).unwrap();
@@ -1252,6 +1277,25 @@ mod tests {
             let fd = (at(h) - at(-h)) / (2.0 * h);
             assert!((fd - g[k]).abs() < 1e-5 * (1.0 + fd.abs()), "variable {k}: {fd} against {}", g[k]);
         }
+        // A patch of every cell, its cells evaluated in several tasks: the
+        // same bits on one thread as on three.
+        let all: Vec<usize> = (0..mesh.n_cells()).collect();
+        let whole = build_patches(&mesh, &NodeCells::new(&mesh), &all, 1).remove(0);
+        assert!(whole.cells.len() >= 3 * CELLS_PER_TASK, "{} cells", whole.cells.len());
+        let work = PatchWork::new(&ctx, &view, &whole, &ctx.coarse, (below, focus)).unwrap();
+        let held = whole.sliding.iter().map(|&n| Unknown::fixed(node(n)));
+        let vars = Variables::new(whole.free.iter().map(|&n| Unknown::free(node(n), dim)).chain(held).collect());
+        let t: Vec<f64> = (0..vars.n_vars).map(|k| 2e-3 * (1.7 * k as f64).cos()).collect();
+        let on = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                let mut g = vec![0.0; vars.n_vars];
+                let mut scratch = Scratch { trial: vec![[0.0; 3]; vars.unknowns.len()], ..Scratch::default() };
+                let e = work.problem(None).energy_grad(&vars, &t, &mut g, 0.0, &mut scratch).unwrap();
+                (e.to_bits(), g.iter().map(|v| v.to_bits()).collect::<Vec<_>>())
+            })
+        };
+        assert!(on(1) == on(3), "the energy or its gradient depends on the number of threads");
     }
 
     #[test]
