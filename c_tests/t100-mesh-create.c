@@ -165,6 +165,7 @@ int main(void) {
   EXPECT("set_threads: NULL handle", hoc_mesh_set_threads(NULL, 1), NULL, NULLP);
   EXPECT("set_remove_caps: NULL handle", hoc_mesh_set_remove_caps(NULL, 1), NULL, NULLP);
   EXPECT("set_retry: NULL handle", hoc_mesh_set_retry(NULL, 1), NULL, NULLP);
+  EXPECT("set_tangent_first: NULL handle", hoc_mesh_set_tangent_first(NULL, 1), NULL, NULLP);
   {
     int kept = -1;
     EXPECT("retry: NULL handle", hoc_mesh_retry(NULL, &kept, NULL, 0, NULL), NULL, NULLP);

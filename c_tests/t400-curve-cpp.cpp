@@ -115,6 +115,7 @@ int main() {
   mesh.set_fibres(std::vector<double>(3 * fx.n_cells, 1.0));
   mesh.reset_fibres();
   mesh.set_newton(1e-6, 20);
+  mesh.set_tangent_first(false);
 
   std::size_t calls = 0;
   const double R = 0.5;

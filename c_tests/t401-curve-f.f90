@@ -127,6 +127,7 @@ program t401_curve_f
   end if
 
   call check(hoc_mesh_set_retry(mesh, 1_c_int), "set_retry")
+  call check(hoc_mesh_set_tangent_first(mesh, 0_c_int), "set_tangent_first")
   call check(hoc_mesh_run_increments(mesh, 1_c_int), "run_increments")
   call check(hoc_mesh_quality(mesh, q), "quality")
   ! A 2D mesh has no caps: the run is made once.

@@ -378,6 +378,8 @@ int main(void) {
             HOC_ERROR_INVALID_ARGUMENT, "enabled must be 0 or 1");
   ON_HANDLE("set_optimize: 2", mesh, 3, hoc_mesh_set_optimize(mesh, 2), HOC_ERROR_INVALID_ARGUMENT,
             "enabled must be 0 or 1");
+  ON_HANDLE("set_tangent_first: 2", mesh, 3, hoc_mesh_set_tangent_first(mesh, 2), HOC_ERROR_INVALID_ARGUMENT,
+            "enabled must be 0 or 1");
   ON_HANDLE("optimization: NULL out", mesh, 3, hoc_mesh_optimization(mesh, NULL), HOC_ERROR_NULL_POINTER,
             "out is NULL");
   {

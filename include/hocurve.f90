@@ -393,6 +393,14 @@ module hocurve
       integer(c_int) :: status
     end function hoc_mesh_set_optimize
 
+    !> enabled: 1 on, 0 off (default); for a slow projector
+    function hoc_mesh_set_tangent_first(mesh, enabled) bind(C, name="hoc_mesh_set_tangent_first") result(status)
+      import :: c_int, c_ptr
+      type(c_ptr), value :: mesh
+      integer(c_int), value :: enabled
+      integer(c_int) :: status
+    end function hoc_mesh_set_tangent_first
+
     function hoc_mesh_optimization(mesh, out) bind(C, name="hoc_mesh_optimization") result(status)
       import :: c_int, c_ptr, hoc_optimization
       type(c_ptr), value :: mesh
@@ -566,7 +574,7 @@ module hocurve
             hoc_mesh_set_order, hoc_mesh_repair_summary, &
             hoc_mesh_set_material, hoc_mesh_set_formulation, hoc_mesh_set_newton, hoc_mesh_set_fibres, &
             hoc_mesh_set_adaptive_stepping, hoc_mesh_set_static_condensation, hoc_mesh_run_increments, &
-            hoc_mesh_set_optimize, hoc_mesh_optimization, &
+            hoc_mesh_set_optimize, hoc_mesh_set_tangent_first, hoc_mesh_optimization, &
             hoc_mesh_increment_count, &
             hoc_mesh_get_load_fractions, hoc_mesh_get_step_backs, hoc_mesh_solve_count, hoc_mesh_get_solves, &
             hoc_mesh_quality, hoc_mesh_cell_quality, hoc_mesh_node_count, hoc_mesh_cell_count, &

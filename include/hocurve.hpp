@@ -266,6 +266,7 @@ class Mesh {
   void set_static_condensation(int enabled) { check(hoc_mesh_set_static_condensation(mesh_, enabled), mesh_); }
   /** The optimisation stage after the elastic solve: true on (default), false off. */
   void set_optimize(bool enabled) { check(hoc_mesh_set_optimize(mesh_, enabled ? 1 : 0), mesh_); }
+  void set_tangent_first(bool enabled) { check(hoc_mesh_set_tangent_first(mesh_, enabled ? 1 : 0), mesh_); }
   /** Newton–Raphson settings of HOC_FORMULATION_NONLINEAR: tolerance > 0, max_iterations ≥ 1. */
   void set_newton(double tolerance, int max_iterations) {
     check(hoc_mesh_set_newton(mesh_, tolerance, max_iterations), mesh_);

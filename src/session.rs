@@ -356,6 +356,13 @@ impl Session {
         self.opts.optimize.enabled = enabled;
     }
 
+    /// [`crate::curve::OptimizeOptions::tangent_first`]: for a slow
+    /// projector, the optimisation's sliding nodes move in their tangent
+    /// planes and are projected after each pass first (default off).
+    pub fn set_tangent_first(&mut self, enabled: bool) {
+        self.opts.optimize.tangent_first = enabled;
+    }
+
     /// Material model and constants (E > 0, 0 ≤ ν < 0.5). Whether the model
     /// suits the formulation is checked at the next run, so the two may be
     /// set in any order.

@@ -505,6 +505,11 @@ const CLI_CASES: &[(&str, &[&str], &str)] = &[
     ("unknown --caps", &["curve", "IN2", "--order", "2", "--caps", "maybe"], "unknown --caps 'maybe'"),
     ("unknown --repair", &["curve", "IN2", "--order", "2", "--repair", "maybe"], "unknown --repair 'maybe'"),
     ("unknown solver", &["curve", "IN2", "--order", "2", "--solver", "magic"], "magic"),
+    (
+        "unknown --tangent-first",
+        &["curve", "IN2", "--order", "2", "--tangent-first", "maybe"],
+        "unknown --tangent-first 'maybe'",
+    ),
     ("unknown option", &["curve", "IN2", "--order", "2", "--frobnicate", "1"], "unknown option --frobnicate"),
     ("option without a value", &["curve", "IN2", "--output", "OUT", "--order"], "option --order needs a value"),
     ("--geometry without '='", &["curve", "IN2", "--order", "2", "--geometry", "line"], "expected TAG=SHAPE"),

@@ -292,11 +292,7 @@ fn the_polish_slides_boundary_nodes_without_moving_the_boundary_away_from_the_sp
 /// 1e-6, left a point inverted there).
 #[test]
 fn a_coarse_gmsh_torus_cavity_is_untangled_where_the_elastic_stage_stops_short() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/torus_cavity_n4_gmsh.msh");
-    let mut mesh = hocurve::io::gmsh::to_linear_mesh(&hocurve::io::gmsh::read_msh(&path).unwrap()).unwrap();
-    let mut projector = ShapeProjector::new();
-    projector.insert(7, Shape::parse("torus:0,0,0,0.5,0.35").unwrap());
-    mesh.retain_tags(|d, t| projector.get(d, t).is_some());
+    let (mesh, projector) = coarse_torus_n4();
     let c = run(&mesh, &projector, &CurveOptions { order: 2, ..Default::default() }).unwrap();
     assert_eq!(c.report.quality.n_invalid, 0);
     assert!(c.report.elastic_stop.is_some(), "the elastic stage stopped short");
@@ -308,6 +304,77 @@ fn a_coarse_gmsh_torus_cavity_is_untangled_where_the_elastic_stage_stops_short()
     let t = run(&mesh, &projector, &CurveOptions { order: 2, optimize, ..Default::default() }).unwrap();
     assert_eq!(t.report.quality.n_invalid, 0);
     assert_eq!(t.mesh.coords, c.mesh.coords);
+}
+
+/// The torus R = 0.5, r = 0.35 about z (tag 7) and gmsh's coarse mesh of
+/// the box less it, 4 elements per turn of curvature.
+fn coarse_torus_n4() -> (LinearMesh, ShapeProjector) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/torus_cavity_n4_gmsh.msh");
+    let mut mesh = hocurve::io::gmsh::to_linear_mesh(&hocurve::io::gmsh::read_msh(&path).unwrap()).unwrap();
+    let mut projector = ShapeProjector::new();
+    projector.insert(7, Shape::parse("torus:0,0,0,0.5,0.35").unwrap());
+    mesh.retain_tags(|d, t| projector.get(d, t).is_some());
+    (mesh, projector)
+}
+
+/// A C projector onto a [`Shape`] that counts the points it is asked for.
+struct CountedShape {
+    shape: Shape,
+    points: usize,
+}
+
+unsafe extern "C" fn onto_counted(
+    user: *mut std::ffi::c_void,
+    _: std::ffi::c_int,
+    _: std::ffi::c_int,
+    n: usize,
+    points: *const f64,
+    out: *mut f64,
+) -> std::ffi::c_int {
+    let c = &mut *(user as *mut CountedShape);
+    let (p, o) = (std::slice::from_raw_parts(points, 3 * n), std::slice::from_raw_parts_mut(out, 3 * n));
+    for (x, y) in p.chunks(3).zip(o.chunks_mut(3)) {
+        y.copy_from_slice(&c.shape.closest_point([x[0], x[1], x[2]]));
+    }
+    c.points += n;
+    0
+}
+
+/// The C ABI's setting for slow projectors reaches the optimisation: on
+/// the coarse torus its sliding asks the projector for other points, and
+/// ends at the same mesh as the Rust run above.
+#[test]
+fn the_c_abi_slides_in_the_tangent_planes_first_when_told() {
+    use hocurve::ffi::*;
+    let (mesh, _) = coarse_torus_n4();
+    let cells: Vec<i64> = mesh.cells.iter().map(|&v| v as i64).collect();
+    let facets: Vec<i64> = mesh.facets.iter().map(|&v| v as i64).collect();
+    let run_c = |tangent_first: std::ffi::c_int| unsafe {
+        let mut counted = CountedShape { shape: Shape::parse("torus:0,0,0,0.5,0.35").unwrap(), points: 0 };
+        let mut m = std::ptr::null_mut();
+        let (nv, nc) = (mesh.n_vertices(), mesh.n_cells());
+        assert_eq!(hoc_mesh_create(3, nv, mesh.coords.as_ptr(), nc, cells.as_ptr(), &mut m), HOC_OK);
+        assert_eq!(hoc_mesh_set_boundary(m, mesh.n_facets(), facets.as_ptr(), mesh.facet_tags.as_ptr()), HOC_OK);
+        let user = &mut counted as *mut CountedShape as *mut std::ffi::c_void;
+        assert_eq!(hoc_mesh_set_projector(m, Some(onto_counted), user), HOC_OK);
+        assert_eq!(hoc_mesh_set_order(m, 2, HOC_SPACING_OPTIMAL), HOC_OK);
+        assert_eq!(hoc_mesh_set_tangent_first(m, 2), HOC_ERROR_INVALID_ARGUMENT);
+        assert_eq!(hoc_mesh_set_tangent_first(m, tangent_first), HOC_OK);
+        assert_eq!(hoc_mesh_run_increments(m, 10), HOC_OK);
+        let mut q = std::mem::zeroed::<HocQuality>();
+        assert_eq!(hoc_mesh_quality(m, &mut q), HOC_OK);
+        assert_eq!(q.n_certified_invalid, 0);
+        let mut nn = 0;
+        assert_eq!(hoc_mesh_node_count(m, &mut nn), HOC_OK);
+        let mut coords = vec![0.0; 3 * nn];
+        assert_eq!(hoc_mesh_get_nodes(m, HOC_ORDERING_NATIVE, nn, coords.as_mut_ptr()), HOC_OK);
+        hoc_mesh_destroy(&mut m);
+        (coords, counted.points)
+    };
+    let (projected, calls) = run_c(0);
+    let (tangent, tangent_calls) = run_c(1);
+    assert_eq!(projected, tangent, "the same mesh either way here");
+    assert_ne!(calls, tangent_calls, "the setting did not change how the nodes slide");
 }
 
 /// The elastic stage as one process's part of a distributed run

@@ -4,7 +4,8 @@
 //
 //   hocurve-occt MODEL.step|.brep --order P [--mesh-size H] [--curvature N] [--formulation F]
 //                [--poisson NU] [--increments N] [--threads T] [--placement parametric|closest]
-//                [--adaptive on|off] [--optimize on|off] [--caps remove|keep] [--retry on|off]
+//                [--adaptive on|off] [--optimize on|off] [--tangent-first on|off] [--caps remove|keep]
+//                [--retry on|off]
 //                --output OUT.msh|.vtu [--report R.json]
 #include "occt_pipeline.hpp"
 
@@ -21,7 +22,8 @@ namespace {
 void usage() {
   std::cerr << "usage: hocurve-occt MODEL.step|.brep --order P [--mesh-size H] [--curvature N] [--formulation "
                "linear|ile|iil|cil|nonlinear] [--poisson NU] [--increments N] [--threads T] "
-               "[--placement parametric|closest] [--adaptive on|off] [--optimize on|off] [--caps remove|keep] "
+               "[--placement parametric|closest] [--adaptive on|off] [--optimize on|off] [--tangent-first on|off] "
+               "[--caps remove|keep] "
                "[--retry on|off] --output OUT.msh|.vtu [--report R.json]\n";
 }
 
@@ -71,7 +73,7 @@ std::string solves_json(const hocurve::Mesh &mesh) {
 
 int main(int argc, char **argv) {
   std::string model, output, report, formulation = "ile", placement = "parametric", adaptive = "on", optimize = "on",
-              caps = "remove", retry = "on";
+              tangent_first = "off", caps = "remove", retry = "on";
   int order = 0, increments = 1, threads = 0, per_2pi = 12;
   double h = 0.0, poisson = 0.3;
   bool placement_given = false;
@@ -94,6 +96,7 @@ int main(int argc, char **argv) {
     else if (a == "--placement") placement = value(), placement_given = true;
     else if (a == "--adaptive") adaptive = value();
     else if (a == "--optimize") optimize = value();
+    else if (a == "--tangent-first") tangent_first = value();
     else if (a == "--caps") caps = value();
     else if (a == "--retry") retry = value();
     else if (a == "--output") output = value();
@@ -109,6 +112,7 @@ int main(int argc, char **argv) {
   }
   if (model.empty() || output.empty() || order < 1 || (placement != "parametric" && placement != "closest") ||
       (adaptive != "on" && adaptive != "off") || (optimize != "on" && optimize != "off") ||
+      (tangent_first != "on" && tangent_first != "off") ||
       (caps != "remove" && caps != "keep") || (retry != "on" && retry != "off")) {
     usage();
     return 2;
@@ -141,6 +145,7 @@ int main(int argc, char **argv) {
       // ends with the mesh and its invalid cells counted (exit status 3).
       if (adaptive == "off") mesh.set_adaptive_stepping(0);
       if (optimize == "off") mesh.set_optimize(false);
+      if (tangent_first == "on") mesh.set_tangent_first(true);
       if (caps == "keep") mesh.set_remove_caps(false);
       if (retry == "off") mesh.set_retry(false);
       mesh.run_increments(increments);

@@ -56,6 +56,7 @@ USAGE:
                 [--spacing optimal|equispaced] [--solver auto|direct|iterative]
                 [--caps remove|keep] [--retry on|off] [--repair on|off]
                 [--adaptive on|off] [--max-splits K] [--condense on|off] [--optimize on|off]
+                [--tangent-first on|off]
                 [--partitioned on|off] (hocurve-mpi: gmsh's partitioned format, a part per process)
       Curve a linear gmsh (.msh 4.1) mesh. TAG is the elementary entity tag of
       the boundary facets (or 3D feature curves) that lie on SHAPE:
@@ -92,6 +93,9 @@ USAGE:
       keep valid does not stop the run: the rest of the load is applied in
       one solve and the optimisation has to make the mesh valid. The report
       says where the elastic stage stopped and what the optimisation did.
+      --tangent-first on (for a slow projector; default off): the sliding
+      boundary nodes move in their tangent planes and are projected after
+      each pass first, and at every step only where that is not enough.
 
   hocurve quality MESH.msh [--report R.json]
       Measure Q1, Q2, Q3 of any high-order gmsh mesh.
@@ -217,6 +221,7 @@ fn options_from(args: &Args, default_order: usize) -> Result<CurveOptions> {
     o.adaptive = args.on_off("adaptive")?;
     o.condense = args.on_off("condense")?.unwrap_or(o.condense);
     o.optimize.enabled = args.on_off("optimize")?.unwrap_or(o.optimize.enabled);
+    o.optimize.tangent_first = args.on_off("tangent-first")?.unwrap_or(o.optimize.tangent_first);
     o.max_splits = args.number("max-splits", o.max_splits)?;
     o.remove_caps = match args.get("caps") {
         None | Some("remove") => true,
@@ -381,6 +386,7 @@ fn cmd_curve(argv: &[String], parallel: Parallel, ranks: Option<usize>) -> Resul
             "max-splits",
             "condense",
             "optimize",
+            "tangent-first",
             "tolerance",
             "max-iterations",
             "output",
