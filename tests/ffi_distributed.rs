@@ -2,7 +2,6 @@
 //! built without MPI (the default): what they do without it. Under MPI they
 //! are tested by tests/mpi/test_distributed.py.
 
-use std::ffi::CStr;
 use std::ptr::null_mut;
 
 use hocurve::ffi::*;
@@ -12,8 +11,9 @@ use hocurve::session::Session;
 const SQ: [f64; 8] = [0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0, 1.0];
 const SQ_CELLS: [i64; 6] = [0, 1, 2, 0, 2, 3];
 
+#[cfg(not(feature = "mpi"))]
 fn thread_error() -> String {
-    unsafe { CStr::from_ptr(hoc_mesh_last_error(std::ptr::null())).to_string_lossy().into_owned() }
+    unsafe { std::ffi::CStr::from_ptr(hoc_mesh_last_error(std::ptr::null())).to_string_lossy().into_owned() }
 }
 
 #[cfg(not(feature = "mpi"))]
