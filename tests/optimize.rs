@@ -7,6 +7,9 @@
 
 use std::path::Path;
 
+mod common;
+use common::{c_handle, CountedShape};
+
 use hocurve::curve::OptimizeOptions;
 use hocurve::geometry::{Shape, ShapeProjector};
 use hocurve::mesh::{LinearMesh, NodeConstraint};
@@ -317,29 +320,6 @@ fn coarse_torus_n4() -> (LinearMesh, ShapeProjector) {
     (mesh, projector)
 }
 
-/// A C projector onto a [`Shape`] that counts the points it is asked for.
-struct CountedShape {
-    shape: Shape,
-    points: usize,
-}
-
-unsafe extern "C" fn onto_counted(
-    user: *mut std::ffi::c_void,
-    _: std::ffi::c_int,
-    _: std::ffi::c_int,
-    n: usize,
-    points: *const f64,
-    out: *mut f64,
-) -> std::ffi::c_int {
-    let c = &mut *(user as *mut CountedShape);
-    let (p, o) = (std::slice::from_raw_parts(points, 3 * n), std::slice::from_raw_parts_mut(out, 3 * n));
-    for (x, y) in p.chunks(3).zip(o.chunks_mut(3)) {
-        y.copy_from_slice(&c.shape.closest_point([x[0], x[1], x[2]]));
-    }
-    c.points += n;
-    0
-}
-
 /// The C ABI's setting for slow projectors reaches the optimisation: on
 /// the coarse torus its sliding asks the projector for other points, and
 /// ends at the same mesh as the Rust run above.
@@ -347,17 +327,9 @@ unsafe extern "C" fn onto_counted(
 fn the_c_abi_slides_in_the_tangent_planes_first_when_told() {
     use hocurve::ffi::*;
     let (mesh, _) = coarse_torus_n4();
-    let cells: Vec<i64> = mesh.cells.iter().map(|&v| v as i64).collect();
-    let facets: Vec<i64> = mesh.facets.iter().map(|&v| v as i64).collect();
     let run_c = |tangent_first: std::ffi::c_int| unsafe {
-        let mut counted = CountedShape { shape: Shape::parse("torus:0,0,0,0.5,0.35").unwrap(), points: 0 };
-        let mut m = std::ptr::null_mut();
-        let (nv, nc) = (mesh.n_vertices(), mesh.n_cells());
-        assert_eq!(hoc_mesh_create(3, nv, mesh.coords.as_ptr(), nc, cells.as_ptr(), &mut m), HOC_OK);
-        assert_eq!(hoc_mesh_set_boundary(m, mesh.n_facets(), facets.as_ptr(), mesh.facet_tags.as_ptr()), HOC_OK);
-        let user = &mut counted as *mut CountedShape as *mut std::ffi::c_void;
-        assert_eq!(hoc_mesh_set_projector(m, Some(onto_counted), user), HOC_OK);
-        assert_eq!(hoc_mesh_set_order(m, 2, HOC_SPACING_OPTIMAL), HOC_OK);
+        let mut counted = CountedShape::new(Shape::parse("torus:0,0,0,0.5,0.35").unwrap());
+        let mut m = c_handle(&mesh, &mut counted, 2);
         assert_eq!(hoc_mesh_set_tangent_first(m, 2), HOC_ERROR_INVALID_ARGUMENT);
         assert_eq!(hoc_mesh_set_tangent_first(m, tangent_first), HOC_OK);
         assert_eq!(hoc_mesh_run_increments(m, 10), HOC_OK);

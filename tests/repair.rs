@@ -20,6 +20,9 @@
 
 use std::path::Path;
 
+mod common;
+use common::{c_handle, onto_counted, CountedShape};
+
 use hocurve::curve::{curve, CurveOptions, Stage};
 use hocurve::geometry::{facet_bulges, project_samples, Shape, ShapeProjector};
 use hocurve::mesh::repair::{bad_cells, repair_with};
@@ -156,37 +159,6 @@ fn the_session_repairs_at_each_run_and_maps_the_new_cells() {
     assert_eq!(s.quality().n_certified_invalid, 0);
 }
 
-/// Projects onto the [`Shape`] that `user` points to (3D points).
-unsafe extern "C" fn onto_shape(
-    user: *mut std::ffi::c_void,
-    _: std::ffi::c_int,
-    _: std::ffi::c_int,
-    n: usize,
-    points: *const f64,
-    out: *mut f64,
-) -> std::ffi::c_int {
-    let (p, o) = (std::slice::from_raw_parts(points, 3 * n), std::slice::from_raw_parts_mut(out, 3 * n));
-    let shape = &*(user as *const Shape);
-    for (x, y) in p.chunks(3).zip(o.chunks_mut(3)) {
-        y.copy_from_slice(&shape.closest_point([x[0], x[1], x[2]]));
-    }
-    0
-}
-
-/// A C ABI handle on `m` (3D, boundary tagged) projecting onto `shape`
-/// (which must outlive it), at order `p`.
-unsafe fn c_handle(m: &LinearMesh, shape: &mut Shape, p: std::ffi::c_int) -> *mut hocurve::ffi::HocMesh {
-    use hocurve::ffi::*;
-    let cells: Vec<i64> = m.cells.iter().map(|&v| v as i64).collect();
-    let facets: Vec<i64> = m.facets.iter().map(|&v| v as i64).collect();
-    let mut h = std::ptr::null_mut();
-    assert_eq!(hoc_mesh_create(3, m.n_vertices(), m.coords.as_ptr(), m.n_cells(), cells.as_ptr(), &mut h), HOC_OK);
-    assert_eq!(hoc_mesh_set_boundary(h, m.n_facets(), facets.as_ptr(), m.facet_tags.as_ptr()), HOC_OK);
-    assert_eq!(hoc_mesh_set_projector(h, Some(onto_shape), shape as *mut Shape as *mut _), HOC_OK);
-    assert_eq!(hoc_mesh_set_order(h, p, HOC_SPACING_OPTIMAL), HOC_OK);
-    h
-}
-
 #[test]
 fn the_c_abi_turns_the_repair_on_and_off_and_reports_it() {
     use hocurve::ffi::*;
@@ -197,8 +169,8 @@ fn the_c_abi_turns_the_repair_on_and_off_and_reports_it() {
         let mut m = std::ptr::null_mut();
         assert_eq!(hoc_mesh_create(3, mesh.n_vertices(), mesh.coords.as_ptr(), 7, cells.as_ptr(), &mut m), HOC_OK);
         assert_eq!(hoc_mesh_set_boundary(m, mesh.n_facets(), facets.as_ptr(), mesh.facet_tags.as_ptr()), HOC_OK);
-        let mut sphere = Shape::Sphere { center: [0.0; 3], radius: 0.70 };
-        assert_eq!(hoc_mesh_set_projector(m, Some(onto_shape), &mut sphere as *mut Shape as *mut _), HOC_OK);
+        let mut sphere = CountedShape::new(Shape::Sphere { center: [0.0; 3], radius: 0.70 });
+        assert_eq!(hoc_mesh_set_projector(m, Some(onto_counted), &mut sphere as *mut CountedShape as *mut _), HOC_OK);
         assert_eq!(hoc_mesh_set_order(m, 2, HOC_SPACING_OPTIMAL), HOC_OK);
         // Caps kept: the repair flips (by default it would remove the cell as a cap).
         assert_eq!(hoc_mesh_set_remove_caps(m, 0), HOC_OK);
@@ -308,7 +280,7 @@ fn a_surface_flip_makes_valid_a_sphere_cavity_the_elastic_stage_cannot_curve() {
     assert!(facets.filter(|(_, &t)| t == 7).all(|(f, _)| f.iter().all(|&v| on_sphere(&repaired.mesh, v, 0.8))));
     // The C ABI reports it.
     use hocurve::ffi::*;
-    let mut sphere = Shape::Sphere { center: [0.0; 3], radius: 0.8 };
+    let mut sphere = CountedShape::new(Shape::Sphere { center: [0.0; 3], radius: 0.8 });
     unsafe {
         let mut h = c_handle(&m, &mut sphere, 3);
         assert_eq!(hoc_mesh_run_increments(h, 10), HOC_OK);
@@ -380,7 +352,7 @@ fn the_c_abi_makes_the_run_again_with_the_caps_kept_unless_told_not_to() {
     use hocurve::ffi::*;
     let (mesh, _) = coarse_torus();
     let (m, _) = validate_and_orient(&mesh).unwrap();
-    let mut torus = Shape::parse("torus:0,0,0,0.6,0.3").unwrap();
+    let mut torus = CountedShape::new(Shape::parse("torus:0,0,0,0.6,0.3").unwrap());
     unsafe {
         let mut h = c_handle(&m, &mut torus, 2);
         let mut caps = HocRepair::default();

@@ -4,6 +4,7 @@
 
 use hocurve::assembly::{DofMap, LinearElasticKernel, System};
 use hocurve::cases::Case;
+use hocurve::geometry::Shape;
 use hocurve::mapping::ElementCache;
 use hocurve::material::LinearElastic;
 use hocurve::mesh::{validate_and_orient, HighOrderMesh, LinearMesh, Topology};
@@ -173,4 +174,51 @@ pub fn cube_with_slivers(n: usize, count: usize, quality: f64) -> LinearMesh {
     }
     assert_eq!(moved, count, "not enough interior vertices");
     mesh
+}
+
+/// The user data of [`onto_counted`]: a shape, and how many points the
+/// projector was asked for.
+pub struct CountedShape {
+    pub shape: Shape,
+    pub points: usize,
+}
+
+impl CountedShape {
+    pub fn new(shape: Shape) -> CountedShape {
+        CountedShape { shape, points: 0 }
+    }
+}
+
+/// A C projector onto the [`CountedShape`] that `user` points to (3D
+/// points), counting them.
+pub unsafe extern "C" fn onto_counted(
+    user: *mut std::ffi::c_void,
+    _: std::ffi::c_int,
+    _: std::ffi::c_int,
+    n: usize,
+    points: *const f64,
+    out: *mut f64,
+) -> std::ffi::c_int {
+    let c = &mut *(user as *mut CountedShape);
+    let (p, o) = (std::slice::from_raw_parts(points, 3 * n), std::slice::from_raw_parts_mut(out, 3 * n));
+    for (x, y) in p.chunks(3).zip(o.chunks_mut(3)) {
+        y.copy_from_slice(&c.shape.closest_point([x[0], x[1], x[2]]));
+    }
+    c.points += n;
+    0
+}
+
+/// A C ABI handle on `m` (3D, boundary tagged) projecting onto `shape`
+/// (which must outlive it), at order `p`.
+pub unsafe fn c_handle(m: &LinearMesh, shape: &mut CountedShape, p: std::ffi::c_int) -> *mut hocurve::ffi::HocMesh {
+    use hocurve::ffi::*;
+    let cells: Vec<i64> = m.cells.iter().map(|&v| v as i64).collect();
+    let facets: Vec<i64> = m.facets.iter().map(|&v| v as i64).collect();
+    let mut h = std::ptr::null_mut();
+    assert_eq!(hoc_mesh_create(3, m.n_vertices(), m.coords.as_ptr(), m.n_cells(), cells.as_ptr(), &mut h), HOC_OK);
+    assert_eq!(hoc_mesh_set_boundary(h, m.n_facets(), facets.as_ptr(), m.facet_tags.as_ptr()), HOC_OK);
+    let user = shape as *mut CountedShape as *mut std::ffi::c_void;
+    assert_eq!(hoc_mesh_set_projector(h, Some(onto_counted), user), HOC_OK);
+    assert_eq!(hoc_mesh_set_order(h, p, HOC_SPACING_OPTIMAL), HOC_OK);
+    h
 }
