@@ -857,8 +857,7 @@ impl PatchProblem<'_, '_> {
         if vars.n_vars == 0 {
             return;
         }
-        let mut work =
-            Scratch { trial: pos.to_vec(), ..Scratch::default() };
+        let mut work = Scratch { trial: pos.to_vec(), ..Scratch::default() };
         let mut xe = vec![0.0; self.npc * self.dim];
         let mut t = vec![0.0; vars.n_vars];
         let mut jmin = self.min_det(pos, &mut xe);
