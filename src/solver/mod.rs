@@ -26,7 +26,7 @@ pub use crate::sparse::{NodeGroups, SparseRows, SymmetricCsc};
 pub use cholesky::{nested_dissection, node_block_size, DirectOrdering, SparseCholesky};
 pub use direct::DirectSolver;
 pub use external::{CsrView, ExternalAdapter, ExternalSolver, FullCsrPattern, LowerCscView, SystemSolver};
-pub use iterative::{IterativeParams, IterativeSolver, FALLBACK_DIRECT_MAX_DOFS};
+pub use iterative::{IterativeParams, IterativeSolver, FALLBACK_DIRECT_MAX_DOFS, REUSE_SLACK};
 pub use lu::try_lu_solve_in_place;
 pub use pcg::{PcgFailure, PcgParams};
 pub use pmg::ChebyshevParams;
