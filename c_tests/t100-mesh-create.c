@@ -152,6 +152,7 @@ int main(void) {
 
   /* ---- every function with a NULL handle or NULL output ---- */
   HocQuality q;
+  HocTimings tm;
   double d;
   int64_t i64 = 0, ids[3] = {0, 1, 2};
   int32_t i32 = 1;
@@ -184,6 +185,7 @@ int main(void) {
   EXPECT("set_fibres: NULL handle", hoc_mesh_set_fibres(NULL, 0, NULL), NULL, NULLP);
   EXPECT("run_increments: NULL handle", hoc_mesh_run_increments(NULL, 1), NULL, NULLP);
   EXPECT("quality: NULL handle", hoc_mesh_quality(NULL, &q), NULL, NULLP);
+  EXPECT("timings: NULL handle", hoc_mesh_timings(NULL, &tm), NULL, NULLP);
   EXPECT("cell_quality: NULL handle", hoc_mesh_cell_quality(NULL, 3, 2, x), NULL, NULLP);
   EXPECT("node_count: NULL handle", hoc_mesh_node_count(NULL, &n), NULL, NULLP);
   EXPECT("cell_count: NULL handle", hoc_mesh_cell_count(NULL, &nc, &npc), NULL, NULLP);
@@ -191,6 +193,7 @@ int main(void) {
   EXPECT("get_cells: NULL handle", hoc_mesh_get_cells(NULL, HOC_ORDERING_NATIVE, 1, &i64), NULL, NULLP);
   EXPECT("write: NULL handle", hoc_mesh_write(NULL, "x.msh"), NULL, NULLP);
   EXPECT("quality: out NULL", hoc_mesh_quality(mesh, NULL), mesh, NULLP);
+  EXPECT("timings: out NULL", hoc_mesh_timings(mesh, NULL), mesh, NULLP);
   EXPECT("cell_quality: out NULL", hoc_mesh_cell_quality(mesh, 3, 2, NULL), mesh, NULLP);
   EXPECT("node_count: out NULL", hoc_mesh_node_count(mesh, NULL), mesh, NULLP);
   EXPECT("cell_count: out NULL", hoc_mesh_cell_count(mesh, NULL, &npc), mesh, NULLP);

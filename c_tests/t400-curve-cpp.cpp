@@ -167,6 +167,9 @@ int main() {
   REQUIRE(calls > 0, "projector never called");
   HocQuality q = target.quality();
   REQUIRE(q.n_invalid == 0, "%zu invalid cells", q.n_invalid);
+  HocTimings t = target.timings();
+  REQUIRE(t.total > 0 && t.solve > 0 && t.place_boundary > 0 && t.solve + t.place_boundary <= t.total,
+          "timings: total %g, solve %g, placement %g", t.total, t.solve, t.place_boundary);
   REQUIRE(q.n_cells == cells.size() / 4, "n_cells %zu", q.n_cells);
   // Curved valid as first made: not made again with the caps kept.
   REQUIRE(!target.caps_kept_after(), "made again with the caps kept after: %s", target.caps_kept_after()->c_str());

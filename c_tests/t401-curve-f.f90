@@ -54,6 +54,7 @@ program t401_curve_f
   real(c_double), allocatable :: x(:, :)
   type(c_ptr) :: mesh
   type(hoc_quality) :: q
+  type(hoc_timings) :: tm
   integer(c_size_t) :: n_nodes, n_cells, npc
   integer(c_int) :: st
   integer, target :: calls
@@ -130,6 +131,11 @@ program t401_curve_f
   call check(hoc_mesh_set_tangent_first(mesh, 0_c_int), "set_tangent_first")
   call check(hoc_mesh_run_increments(mesh, 1_c_int), "run_increments")
   call check(hoc_mesh_quality(mesh, q), "quality")
+  call check(hoc_mesh_timings(mesh, tm), "timings")
+  if (tm%total <= 0 .or. tm%solve <= 0 .or. tm%solve > tm%total) then
+    print *, "timings: total", tm%total, " solve", tm%solve
+    error stop 1
+  end if
   ! A 2D mesh has no caps: the run is made once.
   call check(hoc_mesh_retry(mesh, caps_kept, message_len, int(size(message), c_size_t), message), "retry")
   if (caps_kept /= 0 .or. message_len /= 0 .or. message(1) /= c_null_char) then

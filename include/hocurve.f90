@@ -115,6 +115,12 @@ module hocurve
     real(c_double) :: min_q3_before, min_q3_after, seconds
   end type hoc_optimization
 
+  !> HocTimings: where the last run's time went, seconds per stage (see hocurve.h).
+  type, bind(C), public :: hoc_timings
+    real(c_double) :: total, repair_and_elevate, place_boundary, assembly, solver_setup
+    real(c_double) :: solve, check, optimize, quality
+  end type hoc_timings
+
   !> HocRepair: boundary caps removed; bad cells found by the last run (all, on one
   !> surface, bulging), flips by kind (2-3, 3-2, edge removal, 2D edge flip), surface
   !> caps removed, cells removed and added, bad cells left, interior edges split,
@@ -408,6 +414,13 @@ module hocurve
       integer(c_int) :: status
     end function hoc_mesh_optimization
 
+    function hoc_mesh_timings(mesh, out) bind(C, name="hoc_mesh_timings") result(status)
+      import :: c_int, c_ptr, hoc_timings
+      type(c_ptr), value :: mesh
+      type(hoc_timings), intent(out) :: out
+      integer(c_int) :: status
+    end function hoc_mesh_timings
+
     function hoc_mesh_increment_count(mesh, n_taken, n_step_backs) &
         bind(C, name="hoc_mesh_increment_count") result(status)
       import :: c_int, c_ptr, c_size_t
@@ -574,7 +587,7 @@ module hocurve
             hoc_mesh_set_order, hoc_mesh_repair_summary, &
             hoc_mesh_set_material, hoc_mesh_set_formulation, hoc_mesh_set_newton, hoc_mesh_set_fibres, &
             hoc_mesh_set_adaptive_stepping, hoc_mesh_set_static_condensation, hoc_mesh_run_increments, &
-            hoc_mesh_set_optimize, hoc_mesh_set_tangent_first, hoc_mesh_optimization, &
+            hoc_mesh_set_optimize, hoc_mesh_set_tangent_first, hoc_mesh_optimization, hoc_mesh_timings, &
             hoc_mesh_increment_count, &
             hoc_mesh_get_load_fractions, hoc_mesh_get_step_backs, hoc_mesh_solve_count, hoc_mesh_get_solves, &
             hoc_mesh_quality, hoc_mesh_cell_quality, hoc_mesh_node_count, hoc_mesh_cell_count, &

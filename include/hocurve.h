@@ -185,6 +185,54 @@ typedef struct {
 } HocOptimization;
 
 /**
+ * Where the last run's time went (hoc_mesh_timings): wall-clock seconds
+ * per stage, the fields of the command line's report `seconds`. The
+ * stages do not cover everything (the elastic stage's set-up, the handing
+ * back of the mesh), so they sum to a little less than `total`.
+ */
+typedef struct {
+  /**
+   * The whole run (both runs when the caps were kept in a second one;
+   * the stages are then the second run's).
+   */
+  double total;
+  /**
+   * The repair of the linear mesh and its elevation to order p.
+   */
+  double repair_and_elevate;
+  /**
+   * The placement of the boundary nodes on the geometry.
+   */
+  double place_boundary;
+  /**
+   * Elastic stage: assembly of the stiffness (every increment).
+   */
+  double assembly;
+  /**
+   * Elastic stage: the solver's symbolic analysis and set-up.
+   */
+  double solver_setup;
+  /**
+   * Elastic stage: the linear solves.
+   */
+  double solve;
+  /**
+   * Elastic stage: the validity checks after each increment (certified
+   * after the last).
+   */
+  double check;
+  /**
+   * The quality of every cell, and the optimisation stage
+   * (hoc_mesh_optimization).
+   */
+  double optimize;
+  /**
+   * The set-up of the quality measures.
+   */
+  double quality;
+} HocTimings;
+
+/**
  * Placement of the high-order nodes in the reference element.
  */
 typedef int HocNodeSpacing;
@@ -843,6 +891,16 @@ HocStatus hoc_mesh_set_tangent_first(HocMesh *mesh, int enabled);
  * @return HOC_OK or HOC_ERROR_NULL_POINTER
  */
 HocStatus hoc_mesh_optimization(const HocMesh *mesh, HocOptimization *out);
+
+/**
+ * Where the last successful run's time went, per stage; all zero before
+ * any run.
+ *
+ * @param[in] mesh the handle
+ * @param[out] out the seconds
+ * @return HOC_OK or HOC_ERROR_NULL_POINTER
+ */
+HocStatus hoc_mesh_timings(const HocMesh *mesh, HocTimings *out);
 
 /**
  * Polynomial order (1..10) and node spacing. Discards a curved result.

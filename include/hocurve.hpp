@@ -303,6 +303,12 @@ class Mesh {
     check(hoc_mesh_optimization(mesh_, &o), mesh_);
     return o;
   }
+  /** Where the last run's time went, seconds per stage. */
+  HocTimings timings() const {
+    HocTimings t{};
+    check(hoc_mesh_timings(mesh_, &t), mesh_);
+    return t;
+  }
   /** When the last run was made again with the caps kept: the error that ended its first run. */
   std::optional<std::string> caps_kept_after() const {
     int kept = 0;

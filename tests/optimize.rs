@@ -349,6 +349,42 @@ fn the_c_abi_slides_in_the_tangent_planes_first_when_told() {
     assert_ne!(calls, tangent_calls, "the setting did not change how the nodes slide");
 }
 
+/// The C ABI says where a run's time went: nothing before a run; after
+/// it, every stage that ran took time, the optimisation's own figure is
+/// within its stage, and the stages fit in the total.
+#[test]
+fn the_c_abi_says_where_the_time_went() {
+    use hocurve::ffi::*;
+    let (mesh, _) = coarse_torus_n4();
+    unsafe {
+        let mut counted = CountedShape::new(Shape::parse("torus:0,0,0,0.5,0.35").unwrap());
+        let mut m = c_handle(&mesh, &mut counted, 2);
+        let mut t = HocTimings { total: -1.0, ..Default::default() };
+        assert_eq!(hoc_mesh_timings(m, std::ptr::null_mut()), HOC_ERROR_NULL_POINTER);
+        assert_eq!(hoc_mesh_timings(m, &mut t), HOC_OK);
+        assert_eq!(t.total, 0.0, "before any run");
+        assert_eq!(hoc_mesh_run_increments(m, 10), HOC_OK);
+        assert_eq!(hoc_mesh_timings(m, &mut t), HOC_OK);
+        let mut o = std::mem::zeroed::<HocOptimization>();
+        assert_eq!(hoc_mesh_optimization(m, &mut o), HOC_OK);
+        hoc_mesh_destroy(&mut m);
+        let stages = [
+            t.repair_and_elevate,
+            t.place_boundary,
+            t.assembly,
+            t.solver_setup,
+            t.solve,
+            t.check,
+            t.optimize,
+            t.quality,
+        ];
+        println!("{t:?}");
+        assert!(stages[..7].iter().all(|&s| s > 0.0), "a stage that ran took no time: {t:?}");
+        assert!(o.ran == 1 && t.optimize >= o.seconds, "{t:?}, optimisation {} s", o.seconds);
+        assert!(stages.iter().sum::<f64>() <= t.total, "{t:?}");
+    }
+}
+
 /// The elastic stage as one process's part of a distributed run
 /// (`Parallel::Part`), with a collective of one process: every decision
 /// goes through the agreement the MPI runs take, and the run must be

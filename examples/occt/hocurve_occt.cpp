@@ -184,6 +184,7 @@ int main(int argc, char **argv) {
     auto t_curve = std::chrono::steady_clock::now();
     const HocQuality q = mesh.quality();
     const HocOptimization opt = mesh.optimization();
+    const HocTimings tm = mesh.timings();
     const HocRepair rep = mesh.repair_summary();
     const auto cc = mesh.cell_count();
     const std::size_t nodes = mesh.node_count();
@@ -250,7 +251,12 @@ int main(int argc, char **argv) {
         << ",\n  \"solver_fallbacks\": " << mesh.solver_fallbacks() << ",\n  \"solves\": " << solves_json(mesh)
         << ",\n  \"seconds\": {\"total\": "
         << json_number(secs(t0, t_end)) << ", \"mesh\": " << json_number(secs(t0, t_mesh))
-        << ", \"curve\": " << json_number(secs(t_mesh, t_curve)) << "}\n}\n";
+        << ", \"curve\": " << json_number(secs(t_mesh, t_curve)) << ", \"stages\": {\"repair_and_elevate\": "
+        << json_number(tm.repair_and_elevate) << ", \"place_boundary\": " << json_number(tm.place_boundary)
+        << ", \"assembly\": " << json_number(tm.assembly) << ", \"solver_setup\": " << json_number(tm.solver_setup)
+        << ", \"solve\": " << json_number(tm.solve) << ", \"check\": " << json_number(tm.check)
+        << ", \"optimize\": " << json_number(tm.optimize) << ", \"quality\": " << json_number(tm.quality)
+        << ", \"total\": " << json_number(tm.total) << "}}\n}\n";
       if (!r) throw std::runtime_error("cannot write " + report);
     }
     if (q.n_invalid > 0) status = 3;

@@ -244,6 +244,36 @@ pub struct HocOptimization {
     pub seconds: f64,
 }
 
+/// Where the last run's time went (hoc_mesh_timings): wall-clock seconds
+/// per stage, the fields of the command line's report `seconds`. The
+/// stages do not cover everything (the elastic stage's set-up, the handing
+/// back of the mesh), so they sum to a little less than `total`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default)]
+pub struct HocTimings {
+    /// The whole run (both runs when the caps were kept in a second one;
+    /// the stages are then the second run's).
+    pub total: f64,
+    /// The repair of the linear mesh and its elevation to order p.
+    pub repair_and_elevate: f64,
+    /// The placement of the boundary nodes on the geometry.
+    pub place_boundary: f64,
+    /// Elastic stage: assembly of the stiffness (every increment).
+    pub assembly: f64,
+    /// Elastic stage: the solver's symbolic analysis and set-up.
+    pub solver_setup: f64,
+    /// Elastic stage: the linear solves.
+    pub solve: f64,
+    /// Elastic stage: the validity checks after each increment (certified
+    /// after the last).
+    pub check: f64,
+    /// The quality of every cell, and the optimisation stage
+    /// (hoc_mesh_optimization).
+    pub optimize: f64,
+    /// The set-up of the quality measures.
+    pub quality: f64,
+}
+
 /// What the repair of the linear mesh did (hoc_mesh_repair_summary): boundary
 /// caps removed (hoc_mesh_set_remove_caps) and cells flipped away by the last
 /// run (hoc_mesh_set_repair).
@@ -1202,6 +1232,35 @@ pub unsafe extern "C" fn hoc_mesh_optimization(mesh: *const HocMesh, out: *mut H
                 ..Default::default()
             },
         };
+        Ok(())
+    })
+}
+
+/// Where the last successful run's time went, per stage; all zero before
+/// any run.
+///
+/// @param[in] mesh the handle
+/// @param[out] out the seconds
+/// @return HOC_OK or HOC_ERROR_NULL_POINTER
+#[no_mangle]
+pub unsafe extern "C" fn hoc_mesh_timings(mesh: *const HocMesh, out: *mut HocTimings) -> HocStatus {
+    guard(mesh, || {
+        let h = handle(mesh)?;
+        let out = out.as_mut().ok_or_else(|| null("out"))?;
+        *out = h.session.report().map_or_else(HocTimings::default, |r| {
+            let t = &r.timings;
+            HocTimings {
+                total: t.total,
+                repair_and_elevate: t.elevate,
+                place_boundary: t.project,
+                assembly: t.assembly,
+                solver_setup: t.setup,
+                solve: t.solve,
+                check: t.check,
+                optimize: t.optimize,
+                quality: t.quality,
+            }
+        });
         Ok(())
     })
 }
