@@ -29,7 +29,12 @@ KINDS = {
     "HocSolvedBy": "integer(c_int)",
     "HocFallbackReason": "integer(c_int)",
 }
-STRUCTS = {"HocQuality": "hoc_quality", "HocOptimization": "hoc_optimization", "HocRepair": "hoc_repair"}
+STRUCTS = {
+    "HocQuality": "hoc_quality",
+    "HocOptimization": "hoc_optimization",
+    "HocTimings": "hoc_timings",
+    "HocRepair": "hoc_repair",
+}
 CALLBACKS = {"HocProjectFn", "HocProgressFn", "HocLinearSolverFn"}
 
 
