@@ -349,7 +349,7 @@ impl IterativeSolver {
         let kept = self.kept.take().filter(|_| mode == Mode::Fast && budget.is_some());
         let reused = kept.is_some();
         let start = self.power.take();
-        let warm = start.is_some() || kept.is_some();
+        let warm = start.is_some();
         let lines = if mode == Mode::Fast && kept.is_none() { self.line_blocks(pattern, values)? } else { None };
         let exact = self.op.with(pattern, values);
         let fine: &dyn Operator = match (&mut self.fine32, mode) {
