@@ -130,6 +130,46 @@ impl<'a> WithValues<'a> {
         blocks.chain(diagonal).chain(column)
     }
 
+    /// Unknowns per node of its nodal-block layout (1: not in that layout).
+    pub fn block(&self) -> usize {
+        self.op.b
+    }
+
+    /// Each `B`×`B` block (S, A(R, S)) of node row `node`, S ascending
+    /// (`B` = [`Self::block`]).
+    #[inline]
+    pub fn for_each_block<const B: usize>(&self, node: usize, mut f: impl FnMut(usize, &[[f64; B]; B])) {
+        debug_assert_eq!(self.op.b, B);
+        let (op, cp, ri, values) = (self.op, &self.pattern.col_ptr, &self.pattern.row_idx, self.values);
+        let mut blk = [[0.0f64; B]; B];
+        // Strictly lower: (node·B + ii, S·B + jj) in column S·B + jj.
+        for k in op.lower_ptr[node]..op.lower_ptr[node + 1] {
+            let (s, off) = (op.lower_col[k] as usize, op.lower_off[k] as usize);
+            for (jj, &start) in cp[s * B..s * B + B].iter().enumerate() {
+                for (ii, row) in blk.iter_mut().enumerate() {
+                    row[jj] = values[start + off - jj + ii];
+                }
+            }
+            f(s, &blk);
+        }
+        // Diagonal and upper: (S_m·B + c, node·B + r) in column node·B + r,
+        // the m-th node of its list; the diagonal block's upper half from its lower.
+        let first = cp[node * B];
+        let nodes = (cp[node * B + 1] - first) / B;
+        for m in 0..nodes {
+            for (r, row) in blk.iter_mut().enumerate() {
+                for (c, v) in row.iter_mut().enumerate() {
+                    *v = if m == 0 && c < r {
+                        values[cp[node * B + c] + r - c]
+                    } else {
+                        values[cp[node * B + r] + m * B + c - r]
+                    };
+                }
+            }
+            f(ri[first + m * B] as usize / B, &blk);
+        }
+    }
+
     /// y = A x; each row summed in ascending columns, whatever the threads.
     pub fn matvec_into(&self, x: &[f64], y: &mut [f64]) {
         match self.op.b {

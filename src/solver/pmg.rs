@@ -25,16 +25,15 @@ use super::pcg::{axpby_in_place, dot, BlockJacobi, SymmetricOperator, WithValues
 use super::{NodeGroups, SparseCholesky, SparseRows, SymmetricCsc};
 use crate::{Error, Result, SolverFailure};
 
-/// Fine rows per chunk of W = A P in [`galerkin_product`].
+/// Fine (node) rows per chunk of W = A P in [`galerkin_product`].
 const W_CHUNK: usize = 256;
 
 /// Passes over the fine rows in [`galerkin_product`]: W is held for one
 /// pass's rows at a time.
 const W_PASSES: usize = 8;
 
-/// W = A P on a range of fine rows, per chunk of [`W_CHUNK`] rows: row
-/// starts (relative to the chunk), columns, values.
-type WChunks = Vec<(Vec<u32>, Vec<u32>, Vec<f64>)>;
+/// The `B`×`B` blocks (S, A(R, S)) of fine node row R, given to the callback.
+type BlockRow<'a, const B: usize> = dyn Fn(usize, &mut dyn FnMut(usize, &[[f64; B]; B])) + Sync + 'a;
 
 /// The lower-triangle values of A_c = Pᵀ A P on `coarse` (its pattern):
 /// W = A P row by row, then column J of A_c = Σ_r P[r, J] W[r, ·]. Products
@@ -42,44 +41,128 @@ type WChunks = Vec<(Vec<u32>, Vec<u32>, Vec<f64>)>;
 ///
 /// W is the largest transient of the preconditioner's set-up (a row of W
 /// has about as many entries as a row of A), so it is built for an eighth
-/// of the fine rows at a time ([`W_PASSES`]), in compressed rows of 12
-/// bytes per entry. Each pass adds its part of every coarse column; the
-/// sums do not depend on the number of threads.
+/// of the fine rows at a time ([`W_PASSES`]). Each pass adds its part of
+/// every coarse column; the sums do not depend on the number of threads.
+///
+/// When A and A_c are in nodal-block layout and P = p ⊗ I (the same
+/// interpolation for every component, as for hocurve's nested Lagrange
+/// spaces), the product runs on the nodes' 3×3 (2×2) blocks: the same
+/// sums with a ninth (a quarter) of the index work, about twice as fast
+/// (p = 4 → 2 on the sphere cavity of bench/compare_gmsh.sh: 0.15–0.18 s
+/// against 0.35 s); else entry by entry.
 pub fn galerkin_product(a: WithValues, p: &SparseRows, pt: &SparseRows, coarse: &SymmetricCsc) -> Vec<f64> {
+    let b = a.block();
+    if b > 1 {
+        if let (Some(pn), Ok(nodes)) = (nodal_prolongation(p, b), super::bsr::nodal_blocks(coarse, b)) {
+            let pnt = pn.transpose();
+            return match b {
+                2 => galerkin_blocks::<2>(&|r, f| a.for_each_block::<2>(r, f), &pn, &pnt, coarse, &nodes),
+                _ => galerkin_blocks::<3>(&|r, f| a.for_each_block::<3>(r, f), &pn, &pnt, coarse, &nodes),
+            };
+        }
+    }
+    galerkin_entrywise(a, p, pt, coarse)
+}
+
+/// [`galerkin_product`] entry by entry (blocks of one).
+fn galerkin_entrywise(a: WithValues, p: &SparseRows, pt: &SparseRows, coarse: &SymmetricCsc) -> Vec<f64> {
+    let rows: Vec<Vec<u32>> =
+        (0..coarse.n).map(|c| coarse.row_idx[coarse.col_ptr[c]..coarse.col_ptr[c + 1]].to_vec()).collect();
+    let row = |r: usize, f: &mut dyn FnMut(usize, &[[f64; 1]; 1])| a.row(r).for_each(|(s, v)| f(s, &[[v]]));
+    galerkin_blocks::<1>(&row, p, pt, coarse, &rows)
+}
+
+/// p with P = p ⊗ I_b on nodal blocks (rows and columns node·b + component),
+/// or None if P is not of that form.
+fn nodal_prolongation(p: &SparseRows, b: usize) -> Option<SparseRows> {
+    if !(p.n_rows.is_multiple_of(b) && p.n_cols.is_multiple_of(b)) {
+        return None;
+    }
+    let mut out = SparseRows { n_rows: p.n_rows / b, n_cols: p.n_cols / b, row_ptr: vec![0], ..Default::default() };
+    for node in 0..out.n_rows {
+        let row = |ii: usize| p.row_ptr[node * b + ii]..p.row_ptr[node * b + ii + 1];
+        let first = row(0);
+        for k in first.clone() {
+            let c = p.col[k] as usize;
+            if !c.is_multiple_of(b) {
+                return None;
+            }
+            out.col.push((c / b) as u32);
+            out.val.push(p.val[k]);
+        }
+        for ii in 1..b {
+            let r = row(ii);
+            let same = r.len() == first.len()
+                && r.zip(first.clone()).all(|(k, k0)| p.col[k] == p.col[k0] + ii as u32 && p.val[k] == p.val[k0]);
+            if !same {
+                return None;
+            }
+        }
+        out.row_ptr.push(out.col.len());
+    }
+    Some(out)
+}
+
+/// A_c = Pᵀ A P for P = p ⊗ I_B on nodal blocks, A's node rows given by
+/// `row` ([`galerkin_product`]): W(R, J) = Σ_S A(R, S) p(S, J), then node
+/// column J of A_c, A_c(I, J) = (Σ_R p(R, J) W(R, I))ᵀ for I ≥ J.
+/// `nodes`: the node list of each of the coarse pattern's node columns
+/// ([`super::bsr::nodal_blocks`]).
+fn galerkin_blocks<const B: usize>(
+    row: &BlockRow<B>,
+    p: &SparseRows,
+    pt: &SparseRows,
+    coarse: &SymmetricCsc,
+    nodes: &[Vec<u32>],
+) -> Vec<f64> {
     let nc = p.n_cols;
     let mut out = vec![0.0f64; coarse.nnz()];
+    let zero = [[0.0f64; B]; B];
+    let cp = &coarse.col_ptr;
+    // The values of node column J (its B columns) are contiguous.
+    let node_ptr: Vec<usize> = (0..=nc).map(|j| cp[j * B]).collect();
     let pass_rows = p.n_rows.div_ceil(W_PASSES).div_ceil(W_CHUNK) * W_CHUNK;
     for first in (0..p.n_rows).step_by(pass_rows.max(1)) {
         let rows = first..(first + pass_rows).min(p.n_rows);
-        let w = w_chunks(a, p, rows.clone());
+        let w = w_chunks::<B>(row, p, rows.clone());
         let w_row = |r: usize| {
             let (ptr, cols, vals) = &w[(r - rows.start) / W_CHUNK];
             let range = ptr[(r - rows.start) % W_CHUNK] as usize..ptr[(r - rows.start) % W_CHUNK + 1] as usize;
             cols[range.clone()].iter().zip(&vals[range])
         };
-        let columns = super::split_by(&mut out, &coarse.col_ptr, 1);
+        let columns = super::split_by(&mut out, &node_ptr, 1);
         columns.into_par_iter().enumerate().for_each_init(
-            || vec![0.0f64; nc],
-            |acc, (jc, column)| {
-                let pt_row = &pt.col[pt.row_ptr[jc]..pt.row_ptr[jc + 1]];
-                let ks = pt.row_ptr[jc] + pt_row.partition_point(|&r| (r as usize) < rows.start)
-                    ..pt.row_ptr[jc] + pt_row.partition_point(|&r| (r as usize) < rows.end);
+            || vec![zero; nc],
+            |acc, (j, column)| {
+                let pt_row = &pt.col[pt.row_ptr[j]..pt.row_ptr[j + 1]];
+                let ks = pt.row_ptr[j] + pt_row.partition_point(|&r| (r as usize) < rows.start)
+                    ..pt.row_ptr[j] + pt_row.partition_point(|&r| (r as usize) < rows.end);
                 for k in ks.clone() {
                     let (r, pr) = (pt.col[k] as usize, pt.val[k]);
-                    for (&i, &wv) in w_row(r) {
-                        if i as usize >= jc {
-                            acc[i as usize] += pr * wv;
+                    for (&i, wb) in w_row(r) {
+                        if i as usize >= j {
+                            for (arow, wrow) in acc[i as usize].iter_mut().zip(wb) {
+                                for (x, &y) in arow.iter_mut().zip(wrow) {
+                                    *x += pr * y;
+                                }
+                            }
                         }
                     }
                 }
-                let coarse_rows = &coarse.row_idx[coarse.col_ptr[jc]..coarse.col_ptr[jc + 1]];
-                for (o, &i) in column.iter_mut().zip(coarse_rows) {
-                    *o += acc[i as usize];
+                // Entry (I·B + ii, J·B + jj) = acc[I][jj][ii], at position m·B + ii − jj of column J·B + jj.
+                for jj in 0..B {
+                    let base = cp[j * B + jj] - node_ptr[j];
+                    for (m, &i) in nodes[j].iter().enumerate() {
+                        let ab = &acc[i as usize];
+                        for ii in if m == 0 { jj } else { 0 }..B {
+                            column[base + m * B + ii - jj] += ab[jj][ii];
+                        }
+                    }
                 }
                 // Reset every touched slot (including those outside the pattern).
                 for k in ks {
                     for (&i, _) in w_row(pt.col[k] as usize) {
-                        acc[i as usize] = 0.0;
+                        acc[i as usize] = zero;
                     }
                 }
             },
@@ -88,10 +171,17 @@ pub fn galerkin_product(a: WithValues, p: &SparseRows, pt: &SparseRows, coarse: 
     out
 }
 
-/// W = A P on the fine `rows` ([`WChunks`]).
-fn w_chunks(a: WithValues, p: &SparseRows, rows: std::ops::Range<usize>) -> WChunks {
+/// W = A P by node rows on the fine `rows`, per chunk of [`W_CHUNK`]
+/// rows: row starts (relative to the chunk), coarse nodes, blocks.
+#[allow(clippy::type_complexity)]
+fn w_chunks<const B: usize>(
+    row: &BlockRow<B>,
+    p: &SparseRows,
+    rows: std::ops::Range<usize>,
+) -> Vec<(Vec<u32>, Vec<u32>, Vec<[[f64; B]; B]>)> {
     let nc = p.n_cols;
-    let scratch = || (vec![0.0f64; nc], vec![false; nc], Vec::<u32>::new());
+    let zero = [[0.0f64; B]; B];
+    let scratch = || (vec![zero; nc], vec![false; nc], Vec::<u32>::new());
     (0..rows.len().div_ceil(W_CHUNK))
         .into_par_iter()
         .map_init(scratch, |(acc, seen, list), t| {
@@ -100,20 +190,24 @@ fn w_chunks(a: WithValues, p: &SparseRows, rows: std::ops::Range<usize>) -> WChu
             ptr.push(0u32);
             let (mut cols, mut vals) = (Vec::new(), Vec::new());
             for r in chunk {
-                for (s, v) in a.row(r) {
+                row(r, &mut |s, blk| {
                     for k in p.row_ptr[s]..p.row_ptr[s + 1] {
-                        let j = p.col[k];
-                        if !seen[j as usize] {
-                            seen[j as usize] = true;
-                            list.push(j);
+                        let (j, pv) = (p.col[k] as usize, p.val[k]);
+                        if !seen[j] {
+                            seen[j] = true;
+                            list.push(j as u32);
                         }
-                        acc[j as usize] += v * p.val[k];
+                        for (arow, brow) in acc[j].iter_mut().zip(blk) {
+                            for (x, &y) in arow.iter_mut().zip(brow) {
+                                *x += y * pv;
+                            }
+                        }
                     }
-                }
+                });
                 for &j in list.iter() {
                     cols.push(j);
                     vals.push(acc[j as usize]);
-                    acc[j as usize] = 0.0;
+                    acc[j as usize] = zero;
                     seen[j as usize] = false;
                 }
                 list.clear();
@@ -597,6 +691,65 @@ mod tests {
             v.iter_mut().zip(&u).for_each(|(x, &y)| *x = y / lambda);
         }
         lambda
+    }
+
+    /// A 7×7 grid with 3 coupled components per node and pseudo-random
+    /// symmetric values; p the bilinear interpolation from every other node.
+    fn block_problem() -> (SymmetricCsc, Vec<f64>, SparseRows, SymmetricCsc) {
+        let (m, mc, b) = (7, 4, 3);
+        let (a, mut v) = grid_laplacian(m, b);
+        v.iter_mut().enumerate().for_each(|(k, x)| *x += ((k * 7919) % 1000) as f64 / 1000.0 - 0.5);
+        let rows: Vec<Vec<(u32, f64)>> = (0..m * m)
+            .flat_map(|node| {
+                let (i, j) = (node % m, node / m);
+                let weights = |t: usize| if t.is_multiple_of(2) { vec![(t / 2, 1.0)] } else { vec![(t / 2, 0.5), (t / 2 + 1, 0.5)] };
+                let row: Vec<(usize, f64)> = weights(j)
+                    .into_iter()
+                    .flat_map(|(cj, wj)| weights(i).into_iter().map(move |(ci, wi)| (cj * mc + ci, wi * wj)))
+                    .collect();
+                (0..b).map(move |c| row.iter().map(|&(cn, w)| ((cn * b + c) as u32, w)).collect())
+            })
+            .collect();
+        let p = SparseRows::from_rows(mc * mc * b, &rows);
+        // Every coarse node coupled with every other (a dense lower triangle).
+        let nc = mc * mc * b;
+        let mut coarse = SymmetricCsc { n: nc, col_ptr: vec![0], row_idx: vec![] };
+        for c in 0..nc {
+            coarse.row_idx.extend((c..nc).map(|r| r as u32));
+            coarse.col_ptr.push(coarse.row_idx.len());
+        }
+        (a, v, p, coarse)
+    }
+
+    #[test]
+    fn the_block_galerkin_product_is_the_entrywise_one_and_the_dense_triple_product() {
+        let (a, v, p, coarse) = block_problem();
+        let op = SymmetricOperator::try_new(&a, 3).unwrap();
+        let mat = op.with(&a, &v);
+        let pt = p.transpose();
+        assert!(nodal_prolongation(&p, 3).is_some(), "P = p ⊗ I");
+        let blocks = galerkin_product(mat, &p, &pt, &coarse);
+        let scalar = galerkin_entrywise(mat, &p, &pt, &coarse);
+        // Dense Pᵀ A P.
+        let (nf, nc) = (p.n_rows, p.n_cols);
+        let (mut e, mut pe, mut ape, mut col) = (vec![0.0; nc], vec![0.0; nf], vec![0.0; nf], vec![0.0; nc]);
+        for j in 0..nc {
+            e.fill(0.0);
+            e[j] = 1.0;
+            p.matvec_into(&e, &mut pe);
+            mat.matvec_into(&pe, &mut ape);
+            pt.matvec_into(&ape, &mut col);
+            for k in coarse.col_ptr[j]..coarse.col_ptr[j + 1] {
+                let want = col[coarse.row_idx[k] as usize];
+                assert!((blocks[k] - want).abs() < 1e-12 * want.abs().max(1.0), "({}, {j})", coarse.row_idx[k]);
+                assert!((scalar[k] - want).abs() < 1e-12 * want.abs().max(1.0));
+            }
+        }
+        // Not p ⊗ I: one component's weight differs.
+        let mut q = p.clone();
+        q.val[q.row_ptr[3 * 10 + 1]] += 0.25;
+        assert!(nodal_prolongation(&q, 3).is_none());
+        assert!(nodal_prolongation(&p, 2).is_none());
     }
 
     #[test]
