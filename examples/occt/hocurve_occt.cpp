@@ -234,7 +234,8 @@ int main(int argc, char **argv) {
         << ",\n  \"placement_projected\": " << (pl ? pl->projected : 0)
         << ",\n  \"distorted_facets\": " << (pl ? pl->distorted_facets : 0)
         << ",\n  \"pole_facets\": " << (pl ? pl->pole_facets : 0) << ",\n  \"seam_facets\": " << (pl ? pl->seam_facets : 0)
-        << ",\n  \"projector_calls\": " << proj.calls
+        << ",\n  \"projector_calls\": " << proj.calls << ",\n  \"projector_points\": " << proj.points
+        << ",\n  \"projector_seconds\": " << json_number(proj.seconds)
         << ",\n  \"repair\": {\"removed_caps\": " << rep.removed_caps << ", \"bad_cells\": " << rep.bad_cells << ", \"flips\": "
         << rep.flips_23 + rep.flips_32 + rep.edge_removals + rep.flips_22 << ", \"surface_caps\": " << rep.surface_caps
         << ", \"cells_removed\": " << rep.cells_removed << ", \"cells_added\": " << rep.cells_added

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <exception>
@@ -880,9 +881,16 @@ struct Projector {
   int fail_tag = -1;  // tests: fail on this entity tag (of dimension fail_dim)
   int fail_dim = -1;
   std::size_t calls = 0, points = 0;
+  double seconds = 0.0;  // wall time inside the callback (hocurve calls it from one thread at a time)
 
   static int callback(void *user, int entity_dim, int entity_tag, size_t n, const double *in, double *out) {
     auto *self = static_cast<Projector *>(user);
+    const auto t0 = std::chrono::steady_clock::now();
+    struct Clock {  // adds the call's time on every return path
+      Projector *p;
+      std::chrono::steady_clock::time_point t0;
+      ~Clock() { p->seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); }
+    } clock{self, t0};
     try {
       ++self->calls;
       self->points += n;
