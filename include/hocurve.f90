@@ -293,7 +293,9 @@ module hocurve
 
     !> caps_kept: 1 if the last run was made again with the caps kept;
     !> message_len: the first run's error message's length; message (len
-    !> bytes) gets that message, NUL-terminated.
+    !> bytes) gets that message, NUL-terminated. caps_kept 0 with a message:
+    !> the caps-kept run ended invalid too, and the mesh is the first run's
+    !> made again with every optimisation round; the message is its error.
     function hoc_mesh_retry(mesh, caps_kept, message_len, len, message) bind(C, name="hoc_mesh_retry") &
         result(status)
       import :: c_int, c_ptr, c_size_t, c_char

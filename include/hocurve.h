@@ -798,13 +798,17 @@ HocStatus hoc_mesh_set_retry(HocMesh *mesh, int enabled);
  * Whether the last successful run was made a second time with the caps
  * kept (hoc_mesh_set_retry), and the error that ended its first run.
  * Before any run, and after a run made once, caps_kept is 0 and the message "".
+ * caps_kept 0 with a message: a run with the caps kept was made and ended
+ * invalid too, and the mesh is that of the first run made again with every
+ * optimisation round (the first had stopped after its first rounds); the
+ * message is the caps-kept run's error.
  *
  * @param[in] mesh the handle
  * @param[out] caps_kept 1 if the run was made again with the caps kept, else 0
  * @param[out] message_len NULL, or the length of the whole message in bytes
  *   (without its NUL): call with message NULL first to size the buffer
  * @param[in] len bytes available at message (with message NULL: ignored)
- * @param[out] message NULL, or the first run's error message, NUL-terminated
+ * @param[out] message NULL, or the first run's (or the caps-kept run's) error message, NUL-terminated
  *   and cut to len - 1 bytes (len 0: nothing written)
  * @return HOC_OK or HOC_ERROR_NULL_POINTER
  */

@@ -171,6 +171,14 @@ fn splitting_a_cell_interior_moves_cannot_fix_makes_it_valid() {
     let (mesh, projector) = gmsh_sphere_cavity("sphere_cavity_cap_gmsh.msh", 0.6);
     let mut opts = CurveOptions { order: 2, repair: false, ..Default::default() };
     opts.optimize.slide = false;
+    // The first rounds alone leave it invalid.
+    let mut first_rounds = opts.clone();
+    first_rounds.optimize.later_rounds = false;
+    match run(&mesh, &projector, &first_rounds) {
+        Err(Error::InvalidElement { .. }) => {}
+        Ok(c) => assert!(c.report.quality.n_certified_invalid > 0 && c.report.optimization.cells_split == 0),
+        Err(e) => panic!("{e}"),
+    }
     let c = run(&mesh, &projector, &opts).unwrap();
     let o = &c.report.optimization;
     assert!(o.cells_split > 0, "{o:?}");

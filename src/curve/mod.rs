@@ -258,6 +258,11 @@ pub struct CurveReport {
     /// ([`CurveOptions::retry_keep_caps`]): the error that ended the first
     /// run, which had removed caps. The rest of the report is the second run's.
     pub caps_kept_after: Option<String>,
+    /// When that second run with the caps kept ended invalid too, after a
+    /// first run that had stopped after its first optimisation rounds: its
+    /// error. The mesh and the rest of the report are then those of a third
+    /// run, the first made again with every round ([`CurveOptions::retry_keep_caps`]).
+    pub caps_kept_failed: Option<String>,
     /// What the repair did (`CurveOptions::repair`; all zero when off).
     pub repair: RepairSummary,
     /// For each cell of the curved mesh, an input cell: itself, or for a cell
@@ -357,12 +362,19 @@ pub fn curve_prepared(
     progress: &mut dyn FnMut(&Progress) -> bool,
 ) -> Result<CurvedMesh> {
     prepared.check_matches(opts)?;
-    run_prepared(prepared, projector, opts, progress, Instant::now(), &mut false)
+    run_prepared(prepared, projector, opts, progress, Instant::now(), &mut RunFlags::default())
 }
 
 /// [`run_prepared`]; when it ends with a certified-invalid cell after
 /// removing caps and `opts.retry_keep_caps`, once more from `reprepare`d
-/// with the caps kept. An error of the second run says the first's too.
+/// with the caps kept. The first run then stops after the optimisation's
+/// first rounds ([`crate::optimize::OptimizeOptions::later_rounds`]): the
+/// later rounds of a run that the caps-kept one rescues were most of its
+/// time (a coarse gmsh torus cavity at p = 3: 14 s of 16). If the
+/// caps-kept run fails too, the first is made a third time with every
+/// round, as it was before, and its result (or error) stands, the report
+/// saying why ([`CurveReport::caps_kept_failed`]). An error of the last
+/// run says the others' too.
 pub(crate) fn run_retrying(
     prepared: &Prepared,
     reprepare: &dyn Fn(&CurveOptions) -> Result<Prepared>,
@@ -371,37 +383,99 @@ pub(crate) fn run_retrying(
     progress: &mut dyn FnMut(&Progress) -> bool,
     t0: Instant,
 ) -> Result<CurvedMesh> {
-    let mut caps_removed = false;
-    let first = match run_prepared(prepared, projector, opts, progress, t0, &mut caps_removed) {
-        Err(e @ Error::InvalidElement { .. }) if caps_removed && opts.retry_keep_caps => e.to_string(),
+    let kept = CurveOptions { remove_caps: false, ..opts.clone() };
+    let run = |attempt: Attempt, flags: &mut RunFlags| match attempt {
+        Attempt::First => run_prepared(prepared, projector, opts, progress, t0, flags),
+        Attempt::CapsKept => run_prepared(&reprepare(&kept)?, projector, &kept, progress, Instant::now(), flags),
+        Attempt::FirstInFull => run_prepared(prepared, projector, opts, progress, Instant::now(), flags),
+    };
+    let mut curved = retry_plan(run, opts.retry_keep_caps)?;
+    // After more than one run, the stages' times are the last run's; the total counts them all.
+    curved.report.timings.total = t0.elapsed().as_secs_f64();
+    Ok(curved)
+}
+
+/// The runs of [`run_retrying`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Attempt {
+    /// The first run; with `quick` set, it stops after the optimisation's
+    /// first rounds if it removed caps ([`RunFlags`]).
+    First,
+    /// The same linear mesh with the caps kept.
+    CapsKept,
+    /// The first run again, with every round.
+    FirstInFull,
+}
+
+/// A curving result that says which runs of [`run_retrying`] failed before it.
+trait Retried {
+    fn note(&mut self, caps_kept_after: Option<String>, caps_kept_failed: Option<String>);
+}
+
+impl Retried for CurvedMesh {
+    fn note(&mut self, caps_kept_after: Option<String>, caps_kept_failed: Option<String>) {
+        self.report.caps_kept_after = caps_kept_after;
+        self.report.caps_kept_failed = caps_kept_failed;
+    }
+}
+
+/// The order of the runs of [`run_retrying`], given `run` (one run,
+/// telling back what it did in its flags) and whether to `retry` with the
+/// caps kept.
+fn retry_plan<T: Retried>(mut run: impl FnMut(Attempt, &mut RunFlags) -> Result<T>, retry: bool) -> Result<T> {
+    let mut first_run = RunFlags { quick: true, ..RunFlags::default() };
+    let first = match run(Attempt::First, &mut first_run) {
+        Err(e @ Error::InvalidElement { .. }) if first_run.caps_removed && retry => e.to_string(),
         done => return done,
     };
-    let kept = CurveOptions { remove_caps: false, ..opts.clone() };
-    match run_prepared(&reprepare(&kept)?, projector, &kept, progress, Instant::now(), &mut false) {
-        Ok(mut curved) => {
-            curved.report.caps_kept_after = Some(first);
-            // The stages' times are the second run's; the total counts both.
-            curved.report.timings.total = t0.elapsed().as_secs_f64();
-            Ok(curved)
+    let (cell, message) = match run(Attempt::CapsKept, &mut RunFlags::default()) {
+        Ok(mut done) => {
+            done.note(Some(first), None);
+            return Ok(done);
         }
-        Err(Error::InvalidElement { cell, message }) => Err(Error::InvalidElement {
+        Err(Error::InvalidElement { cell, message }) => (cell, message),
+        Err(e) => return Err(e),
+    };
+    if !first_run.deferred {
+        return Err(Error::InvalidElement {
             cell,
             message: format!("{message} (in a second run with the caps kept; the first had ended: {first})"),
-        }),
+        });
+    }
+    // The first run stopped before its later rounds: once more with them.
+    match run(Attempt::FirstInFull, &mut RunFlags::default()) {
+        Ok(mut done) => {
+            done.note(None, Some(format!("invalid element: {message}")));
+            Ok(done)
+        }
+        Err(Error::InvalidElement { cell, message: last }) => {
+            Err(Error::InvalidElement { cell, message: format!("{last} (and in a run with the caps kept: {message})") })
+        }
         Err(e) => Err(e),
     }
 }
 
+/// What [`run_prepared`] is told and tells about one run of [`run_retrying`].
+#[derive(Debug, Default, Clone, Copy)]
+struct RunFlags {
+    /// Told: a first run that a caps-kept one may follow, whose
+    /// optimisation stops after its first rounds if it removed caps.
+    quick: bool,
+    /// Told back: caps were removed, by the preparation or the repair.
+    caps_removed: bool,
+    /// Told back: the optimisation stopped before its later rounds with
+    /// cells still invalid.
+    deferred: bool,
+}
+
 /// The stages of [`curve`] from a prepared mesh, timed from `t0`.
-/// `caps_removed` is set when the mesh curved has had caps removed, by the
-/// preparation or the repair.
 fn run_prepared(
     prepared: &Prepared,
     projector: &dyn Projector,
     opts: &CurveOptions,
     progress: &mut dyn FnMut(&Progress) -> bool,
     t0: Instant,
-    caps_removed: &mut bool,
+    flags: &mut RunFlags,
 ) -> Result<CurvedMesh> {
     let material = validate_options(opts)?;
     let mut tick = |stage: Stage, step: usize, total: usize| -> Result<()> {
@@ -411,16 +485,26 @@ fn run_prepared(
             Err(Error::Cancelled)
         }
     };
-    let mut run = Run { opts, projector, timings: Timings::default(), tick: &mut tick, second_start: true };
+    let mut run = Run {
+        opts,
+        projector,
+        timings: Timings::default(),
+        tick: &mut tick,
+        second_start: true,
+        defer_later: false,
+        deferred: false,
+    };
 
     // 1-2. Repair and elevate.
     let elevated = run.elevate(prepared)?;
     run.timings.elevate = t0.elapsed().as_secs_f64();
-    *caps_removed = elevated.fixes.removed_caps + elevated.fixes.repair.surface_caps > 0;
+    flags.caps_removed = elevated.fixes.removed_caps + elevated.fixes.repair.surface_caps > 0;
     // A run that removed caps and ends invalid is made again with them kept
     // (run_retrying), which rescues what the second start would try: measured
     // on 15 such runs, the same meshes in about half the time without it.
-    run.second_start = !(*caps_removed && opts.retry_keep_caps);
+    let retried = flags.caps_removed && opts.retry_keep_caps;
+    run.second_start = !retried;
+    run.defer_later = retried && flags.quick;
 
     // 3. Project the boundary nodes.
     let placement = run.project(&elevated)?;
@@ -431,7 +515,9 @@ fn run_prepared(
     let elastic = run.solve_elastic(mesh, &straight, &placement.displacement, &setup)?;
 
     // 5. Quality, and the optimisation of the cells that need it.
-    let done = run.optimise(elastic, &straight, &placement.displacement, &setup, &input_cell)?;
+    let done = run.optimise(elastic, &straight, &placement.displacement, &setup, &input_cell);
+    flags.deferred = run.deferred;
+    let done = done?;
     run.timings.total = t0.elapsed().as_secs_f64();
     Ok(done.into_curved(opts, setup.increments, fixes, &placement, run.timings))
 }
@@ -446,6 +532,11 @@ struct Run<'a> {
     /// Whether an elastic stage that stopped short, leaving the optimisation
     /// with invalid cells, is started a second time ([`Run::optimise`]).
     second_start: bool,
+    /// Whether the optimisation stops after its first rounds
+    /// ([`run_retrying`]) if the elastic stage stopped short, and whether
+    /// it did so with cells still invalid.
+    defer_later: bool,
+    deferred: bool,
 }
 
 impl Run<'_> {
@@ -584,8 +675,14 @@ impl Run<'_> {
         self.timings.quality = t.elapsed().as_secs_f64();
         let t = Instant::now();
         (self.tick)(Stage::Optimize, 0, 1)?;
-        let optimiser = Optimiser { straight, basis: &setup.basis, cache: &cache, opts: &opts.optimize, projector, ti };
+        // Only a run whose elastic stage stopped short ends in an error with
+        // invalid cells left: the one that a caps-kept run may follow.
+        let defer = self.defer_later && solved.stopped.is_some();
+        let first_rounds = OptimizeOptions { later_rounds: false, ..opts.optimize.clone() };
+        let optimize = if defer { &first_rounds } else { &opts.optimize };
+        let optimiser = Optimiser { straight, basis: &setup.basis, cache: &cache, opts: optimize, projector, ti };
         let mut done = optimiser.finish(mesh, certified)?;
+        self.deferred = defer && done.invalid() > 0;
         let mut restarted = false;
         // (Stopped at load 0, the first start was already that.)
         let stopped_after_0 = solved.stopped.as_ref().is_some_and(|s| s.load > 0.0);
@@ -833,6 +930,7 @@ impl Optimised {
             reoriented_cells: fixes.reoriented,
             removed_caps: fixes.removed_caps,
             caps_kept_after: None,
+            caps_kept_failed: None,
             repair: fixes.repair,
             input_cell,
             projected_nodes: placement.projected_nodes,
@@ -845,5 +943,87 @@ impl Optimised {
             optimization,
         };
         CurvedMesh { mesh, straight, cell_quality, report }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A result that says which run made it and what it was told.
+    #[derive(Debug, PartialEq)]
+    struct Made {
+        by: Attempt,
+        after: Option<String>,
+        failed: Option<String>,
+    }
+
+    impl Retried for Made {
+        fn note(&mut self, caps_kept_after: Option<String>, caps_kept_failed: Option<String>) {
+            (self.after, self.failed) = (caps_kept_after, caps_kept_failed);
+        }
+    }
+
+    /// How a scripted run ends: valid, or invalid, with what it tells back.
+    #[derive(Clone, Copy)]
+    enum Ends {
+        Valid,
+        Invalid { caps_removed: bool, deferred: bool },
+    }
+
+    /// The runs made, and the result, for runs scripted by `script` (per attempt).
+    fn plan(script: impl Fn(Attempt) -> Ends, retry: bool) -> (Vec<Attempt>, Result<Made>) {
+        let mut made = Vec::new();
+        let result = retry_plan(
+            |attempt, flags: &mut RunFlags| {
+                made.push(attempt);
+                assert_eq!(flags.quick, attempt == Attempt::First, "only the first run is quick");
+                match script(attempt) {
+                    Ends::Valid => Ok(Made { by: attempt, after: None, failed: None }),
+                    Ends::Invalid { caps_removed, deferred } => {
+                        (flags.caps_removed, flags.deferred) = (caps_removed, deferred);
+                        Err(Error::invalid_element(Some(1), format!("{attempt:?} failed")))
+                    }
+                }
+            },
+            retry,
+        );
+        (made, result)
+    }
+
+    #[test]
+    fn a_quick_first_run_is_made_again_in_full_only_when_the_caps_kept_run_fails_too() {
+        use Attempt::*;
+        let removed = |deferred| Ends::Invalid { caps_removed: true, deferred };
+        // Valid at once: one run.
+        let (made, r) = plan(|_| Ends::Valid, true);
+        assert_eq!((made, r.unwrap()), (vec![First], Made { by: First, after: None, failed: None }));
+        // Caps removed and invalid: the caps-kept run rescues it.
+        let (made, r) = plan(|a| if a == First { removed(true) } else { Ends::Valid }, true);
+        let r = r.unwrap();
+        assert_eq!((made, r.by, r.failed), (vec![First, CapsKept], CapsKept, None));
+        assert!(r.after.unwrap().contains("First failed"));
+        // It fails too, after a first run that stopped before its later rounds: the first in full.
+        let (made, r) = plan(|a| if a == FirstInFull { Ends::Valid } else { removed(true) }, true);
+        let r = r.unwrap();
+        assert_eq!((made, r.by, r.after), (vec![First, CapsKept, FirstInFull], FirstInFull, None));
+        assert!(r.failed.unwrap().contains("CapsKept failed"));
+        // All three fail: the error says the last two.
+        let (made, r) = plan(|_| removed(true), true);
+        assert_eq!(made, vec![First, CapsKept, FirstInFull]);
+        let m = r.unwrap_err().to_string();
+        assert!(m.contains("FirstInFull failed") && m.contains("CapsKept failed"), "{m}");
+        // A first run that had no later rounds to skip is not made again.
+        let (made, r) = plan(|_| removed(false), true);
+        assert_eq!(made, vec![First, CapsKept]);
+        let m = r.unwrap_err().to_string();
+        assert!(m.contains("CapsKept failed") && m.contains("First failed"), "{m}");
+        // No retry, or no cap removed: the first run's error.
+        for (script, retry) in [(removed(true), false), (Ends::Invalid { caps_removed: false, deferred: false }, true)]
+        {
+            let (made, r) = plan(|_| script, retry);
+            assert_eq!(made, vec![First]);
+            assert!(r.unwrap_err().to_string().contains("First failed"));
+        }
     }
 }

@@ -695,6 +695,7 @@ fn encode_report(w: &mut Wire, r: &CurveReport) {
     }
     w.floats.push(r.max_projection_distance);
     w.text(r.caps_kept_after.as_deref().unwrap_or(""));
+    w.text(r.caps_kept_failed.as_deref().unwrap_or(""));
     let p = &r.repair;
     for n in [
         p.bad_cells,
@@ -745,6 +746,7 @@ fn decode_report(r: &mut Reader, session: &Session) -> CurveReport {
         std::array::from_fn(|_| r.int());
     let max_projection_distance = r.float();
     let caps_kept_after = Some(r.text()).filter(|s| !s.is_empty());
+    let caps_kept_failed = Some(r.text()).filter(|s| !s.is_empty());
     let [bad_cells, surface_cells, bulge_cells, flips_23, flips_32, edge_removals, flips_22, surface_caps, cells_removed, cells_added, bad_cells_left, edge_splits, surface_flips] =
         std::array::from_fn(|_| r.int());
     let repair = RepairSummary {
@@ -795,6 +797,7 @@ fn decode_report(r: &mut Reader, session: &Session) -> CurveReport {
         reoriented_cells,
         removed_caps,
         caps_kept_after,
+        caps_kept_failed,
         repair,
         input_cell: Vec::new(),
         projected_nodes,

@@ -68,6 +68,13 @@ pub struct OptimizeOptions {
     /// centroid ([`split`]), so that interior nodes reach every point of
     /// them, and optimise again (default on).
     pub split: bool,
+    /// After the first rounds, work on the cells still invalid: split them
+    /// (with `split`) and optimise growing patches around them, the later
+    /// rounds (default on). Off, the stage ends after the first rounds
+    /// when some cell is still invalid: the curving turns it off in a
+    /// first run that removed caps, whose failure the run with the caps
+    /// kept may then rescue at less cost ([`crate::curve::CurveOptions::retry_keep_caps`]).
+    pub later_rounds: bool,
     /// For a slow projector (gmsh's `getClosestPoint` through Python, at
     /// 0.1 to 0.4 ms a point): sliding nodes move in their tangent planes
     /// and are projected after each pass, and at every step only where that
@@ -84,7 +91,14 @@ pub const DEFAULT_THRESHOLD: f64 = 0.2;
 
 impl Default for OptimizeOptions {
     fn default() -> Self {
-        OptimizeOptions { enabled: true, threshold: DEFAULT_THRESHOLD, slide: true, split: true, tangent_first: false }
+        OptimizeOptions {
+            enabled: true,
+            threshold: DEFAULT_THRESHOLD,
+            slide: true,
+            split: true,
+            later_rounds: true,
+            tangent_first: false,
+        }
     }
 }
 
@@ -223,7 +237,7 @@ pub fn optimize(
         // one thread at a time.
         let projector = projector.filter(|_| opts.slide).map(Mutex::new);
         let mut stage = Stage::new(&ctx, projector.as_ref(), opts, &state, &mut report);
-        if let Some(split) = stage.run(&mut state, basis, opts.split) {
+        if let Some(split) = stage.run(&mut state, basis, opts.split, opts.later_rounds) {
             parent = split;
         }
     }
@@ -297,11 +311,14 @@ impl<'s, 'p> Stage<'s, 'p> {
         Stage { ctx, projector, threshold, tangent_first, touched, moved, report }
     }
 
-    /// Every phase in turn, then the report's totals; the cells' parents if some were split.
-    fn run(&mut self, state: &mut MeshState, basis: &LagrangeBasis, split: bool) -> Option<Vec<usize>> {
+    /// Every phase in turn (the split and the later rounds with `later`),
+    /// then the report's totals; the cells' parents if some were split.
+    fn run(&mut self, state: &mut MeshState, basis: &LagrangeBasis, split: bool, later: bool) -> Option<Vec<usize>> {
         self.first_rounds(state);
-        let parent = if split { self.split_invalid(state, basis) } else { None };
-        self.later_rounds(state);
+        let parent = if split && later { self.split_invalid(state, basis) } else { None };
+        if later {
+            self.later_rounds(state);
+        }
         if let Some(parent) = &parent {
             self.pieces_round(state, parent);
         }
