@@ -268,6 +268,11 @@ fn run_case(label: &str, mesh: &LinearMesh, projector: &ShapeProjector, opts: &C
     if let Some(first) = &r.caps_kept_after {
         eprintln!("[{label}] made again with the caps kept, after: {first}");
     }
+    if let Some(kept) = &r.caps_kept_failed {
+        eprintln!(
+            "[{label}] made a third time with every optimisation round, after a run with the caps kept failed: {kept}"
+        );
+    }
     eprintln!("[{label}] {}", increments_line(r));
     if r.solves.fallbacks() > 0 {
         eprintln!("[{label}] {}", fallbacks_line(r));
