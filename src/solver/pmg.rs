@@ -48,8 +48,8 @@ type BlockRow<'a, const B: usize> = dyn Fn(usize, &mut dyn FnMut(usize, &[[f64; 
 /// interpolation for every component, as for hocurve's nested Lagrange
 /// spaces), the product runs on the nodes' 3×3 (2×2) blocks: the same
 /// sums with a ninth (a quarter) of the index work, about twice as fast
-/// (p = 4 → 2 on the sphere cavity of bench/compare_gmsh.sh: 0.15–0.18 s
-/// against 0.35 s); else entry by entry.
+/// (p = 4 → 2 on the sphere cavity of bench/compare_gmsh.sh: 0.14–0.19 s
+/// against 0.35–0.39 s); else entry by entry.
 pub fn galerkin_product(a: WithValues, p: &SparseRows, pt: &SparseRows, coarse: &SymmetricCsc) -> Vec<f64> {
     let b = a.block();
     if b > 1 {
