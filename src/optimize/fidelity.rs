@@ -154,7 +154,7 @@ impl Baseline {
             return true;
         }
         let mut batch = FIRST_BATCH;
-        while !(now <= sweep.largest + slack) && sweep.next < sweep.order.len() {
+        while sweep.next < sweep.order.len() && now > sweep.largest + slack {
             let end = (sweep.next + batch).min(sweep.order.len());
             let Some(d) = self.measure(pieces, projector, cells, &sweep.order[sweep.next..end]) else { return false };
             sweep.largest = sweep.largest.max(d);
@@ -668,7 +668,7 @@ mod tests {
         for v in &mut off[2 * bumped..2 * bumped + 2] {
             *v *= 1.002;
         }
-        let arcs = vec![xe.clone(), off, arc_triangle(p, 2.0 * theta, 0.0).0];
+        let arcs = [xe.clone(), off, arc_triangle(p, 2.0 * theta, 0.0).0];
         let coords: Vec<f64> = arcs.concat();
         let constraint: Vec<NodeConstraint> = (0..3).flat_map(|_| constraint.iter().copied()).collect();
         let cells: Vec<usize> = (0..3 * npc).collect();
