@@ -362,15 +362,22 @@ class Placer {
   // without gmsh's global getClosestPoint (which took two thirds of the
   // optimisation's time on SampleCrankshaft4A). Accepted only if it is no
   // farther from x than that vertex, a point of the entity; else false.
+  // On a surface, the Gauss-Newton starts from the facet under x first
+  // (facet_foot), and from the nearest vertex only if that fails.
   bool local_foot(int edim, int etag, const double *x, double *y) {
     std::vector<double> z;
-    const int64_t v = nearest_foot(edim, etag, x, z);
-    if (v < 0) return false;
-    auto pv = vertex(v);
-    if (!(detail::dist3(z.data(), x) <= detail::dist3(pv.data(), x))) return false;
-    for (int k = 0; k < 3; ++k) y[k] = z[k];
-    return true;
+    auto accept = [&](int64_t v) {
+      if (v < 0) return false;
+      auto pv = vertex(v);
+      if (!(detail::dist3(z.data(), x) <= detail::dist3(pv.data(), x))) return false;
+      for (int k = 0; k < 3; ++k) y[k] = z[k];
+      return true;
+    };
+    if (edim == 2 && accept(facet_foot(etag, x, z))) return ++facet_feet, true;
+    return accept(nearest_foot(edim, etag, x, z));
   }
+  // Local feet found from the facet under the point (the others from the nearest vertex).
+  std::size_t facet_feet = 0;
 
   // The foot of x on entity (edim, etag) by Gauss-Newton from the parameters
   // of the entity's mesh vertex nearest to x, into z (3 coordinates); returns
@@ -380,10 +387,76 @@ class Placer {
     if (v < 0) return -1;
     const VParam &vp = vertex_param(edim, etag, v);
     double uv[2] = {vp.uv[0], vp.uv[1]};
-    newton(edim, etag, x, uv, 30);
-    gmsh::model::getValue(edim, etag, std::vector<double>(uv, uv + edim), z);
+    newton(edim, etag, x, uv, 30, kFootTolerance * m_.size, &z);
     return z.size() == 3 ? v : -1;
   }
+
+  // The foot of x on surface `tag` by Gauss-Newton from the (u,v) of the
+  // point of x's facet under it (the candidate facet x is most inside when
+  // projected onto its plane, its vertex parameters unwrapped: facet_info),
+  // into z; returns the facet's vertex nearest to x, or -1 (z unset) if no
+  // facet lies under x or its parametrisation is not a good start (a seam,
+  // a pole, distorted: nearest_foot then). Closer than the nearest vertex's
+  // parameters, it takes fewer iterations: on component8 at p = 3, 1.8 a
+  // point against 2.6 (screw: 2.6 against 3.4).
+  int64_t facet_foot(int tag, const double *x, std::vector<double> &z) {
+    auto it = surface_facets_.find(tag);
+    if (it == surface_facets_.end()) return -1;
+    std::size_t best = 0;
+    double lam[3] = {0, 0, 0}, best_score = -HUGE_VAL;
+    for (std::size_t i : surface_buckets_.at(tag).query(x)) {
+      double l[3];
+      barycentric(it->second[i], x, l);
+      const double score = std::min({l[0], l[1], l[2]});
+      if (score > best_score) best = i, best_score = score, lam[0] = l[0], lam[1] = l[1], lam[2] = l[2];
+    }
+    if (!(best_score >= -kFacetMargin)) return -1;
+    const FacetInfo &info = facet_info(tag, best);
+    if (info.miss != Miss::None || info.distorted) return -1;
+    double sum = 0, uv[2];
+    for (double &l : lam) sum += (l = std::max(l, 0.0));
+    for (double &l : lam) l /= sum;
+    facet_uv(info.uvf, lam, uv);
+    newton(2, tag, x, uv, 30, kFootTolerance * m_.size, &z);
+    if (z.size() != 3) return -1;
+    int64_t v = -1;
+    double bd = HUGE_VAL;
+    for (int64_t w : it->second[best]) {
+      auto p = vertex(w);
+      const double d = detail::dist3(p.data(), x);
+      if (d < bd) bd = d, v = w;
+    }
+    return v;
+  }
+
+  // A point counts as over a facet if its barycentric coordinates on the
+  // facet's plane are at least this negative (a node slid just past the
+  // facet's edge, or a curved boundary's bulge).
+  static constexpr double kFacetMargin = 0.25;
+
+  // Barycentric coordinates l of the projection of x onto the plane of facet f.
+  void barycentric(const std::array<int64_t, 3> &f, const double *x, double *l) const {
+    auto a = vertex(f[0]), b = vertex(f[1]), c = vertex(f[2]);
+    double u[3], w[3], r[3];
+    for (int k = 0; k < 3; ++k) u[k] = b[k] - a[k], w[k] = c[k] - a[k], r[k] = x[k] - a[k];
+    double uu = 0, uw = 0, ww = 0, ru = 0, rw = 0;
+    for (int k = 0; k < 3; ++k) uu += u[k] * u[k], uw += u[k] * w[k], ww += w[k] * w[k], ru += r[k] * u[k], rw += r[k] * w[k];
+    const double det = uu * ww - uw * uw;
+    l[1] = (ru * ww - rw * uw) / det, l[2] = (rw * uu - ru * uw) / det, l[0] = 1 - l[1] - l[2];
+  }
+
+  // Gauss-Newton halves a step that does not lower the distance at most
+  // this many times, unless it moved the point by less than kRoundOff of
+  // the model (converged).
+  static constexpr int kHalvings = 10;
+  static constexpr double kRoundOff = 1e-9;
+
+  // The local foot's Gauss-Newton stops once a step moves the point by less
+  // than this fraction of the model: the next would move it less still.
+  // (Iterating until a step no longer lowered the distance took 3.0
+  // iterations a point from the nearest vertex on component8 at p = 3,
+  // 2.6 with this stop; screw 3.7 and 3.4.)
+  static constexpr double kFootTolerance = 1e-12;
 
   // Closest point, checked against a local search: gmsh 4.8's getClosestPoint
   // can answer a point on the far side of a closed face (4.4 away on the
@@ -412,12 +485,15 @@ class Placer {
   // Gauss-Newton on |E(uv) - x|^2 over the parameters uv of entity (edim, etag),
   // from the uv given, on the entity's untrimmed parametrisation (no wrapping, so
   // uv stays in the caller's unwrapped frame). Stops when a step no longer
-  // lowers the distance; returns the final distance |E(uv) - x|. For a point on
+  // lowers the distance even halved (kHalvings), or moves the point by at
+  // most `tol`; returns the final distance |E(uv) - x|, and with `foot` the
+  // point E(uv). For a point on
   // the entity, started near it, this converges quadratically, and unlike
   // getClosestPoint it cannot jump to another part of the entity: gmsh 4.8's
   // getClosestPoint on a face, for a point 1e-8 outside the face's parameter
   // range (the curve the face ends on), answers the far side of a torus.
-  static double newton(int edim, int etag, const double *x, double *uv, int iters = 8) {
+  double newton(int edim, int etag, const double *x, double *uv, int iters = 8, double tol = 0,
+                std::vector<double> *foot = nullptr) const {
     std::vector<double> at(uv, uv + edim), e, d;
     gmsh::model::getValue(edim, etag, at, e);
     double dist = detail::dist3(e.data(), x);
@@ -445,14 +521,25 @@ class Placer {
           step[1] = b[1] / a[2];
         }
       }
+      // A step that overshoots (next to a pole, where S_u is small and the
+      // surface turns fast in u, the full step jumps across it) is halved
+      // until it lowers the distance; one that fails by round-off ends the
+      // iteration.
       std::vector<double> next(at), en;
-      for (int i = 0; i < edim; ++i) next[i] += step[i];
-      gmsh::model::getValue(edim, etag, next, en);
-      const double dn = detail::dist3(en.data(), x);
+      double dn = HUGE_VAL, moved = 0;
+      for (int half = 0; half <= kHalvings; ++half) {
+        for (int i = 0; i < edim; ++i) next[i] = at[i] + std::ldexp(step[i], -half);
+        gmsh::model::getValue(edim, etag, next, en);
+        dn = detail::dist3(en.data(), x);
+        moved = detail::dist3(en.data(), e.data());
+        if (dn < dist || moved <= kRoundOff * m_.size) break;
+      }
       if (!(dn < dist)) break;
       at = next, e = en, dist = dn;
+      if (moved <= tol) break;
     }
     for (int i = 0; i < edim; ++i) uv[i] = at[i];
+    if (foot) *foot = e;
     return dist;
   }
 
@@ -654,18 +741,12 @@ class Placer {
     for (std::size_t i : surface_buckets_.at(tag).query(x)) {
       auto &f = it->second[i];
       auto a = vertex(f[0]), b = vertex(f[1]), c = vertex(f[2]);
-      double u[3], w[3], r[3];
-      for (int k = 0; k < 3; ++k) u[k] = b[k] - a[k], w[k] = c[k] - a[k], r[k] = x[k] - a[k];
-      double uu = 0, uw = 0, ww = 0, ru = 0, rw = 0;
-      for (int k = 0; k < 3; ++k) uu += u[k] * u[k], uw += u[k] * w[k], ww += w[k] * w[k], ru += r[k] * u[k], rw += r[k] * w[k];
-      const double det = uu * ww - uw * uw;
-      const double s = (ru * ww - rw * uw) / det, t = (rw * uu - ru * uw) / det;
-      const double l[3] = {1 - s - t, s, t};
+      double l[3], q[3];
+      barycentric(f, x, l);
       const double score = std::min({l[0], l[1], l[2]});
       if (score < -1e-9) continue;
-      double q[3];
-      for (int k = 0; k < 3; ++k) q[k] = a[k] + s * u[k] + t * w[k];
-      if (detail::dist3(q, x) > 1e-8 * std::sqrt(std::max(uu, ww))) continue;
+      for (int k = 0; k < 3; ++k) q[k] = l[0] * a[k] + l[1] * b[k] + l[2] * c[k];
+      if (detail::dist3(q, x) > 1e-8 * std::max(detail::dist3(a.data(), b.data()), detail::dist3(a.data(), c.data()))) continue;
       if (found < 8) holding[found] = i;
       if (!found++ || score > best_score) best = i, best_score = score, lam[0] = l[0], lam[1] = l[1], lam[2] = l[2];
     }

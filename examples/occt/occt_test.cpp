@@ -586,6 +586,19 @@ int seam() {
           node_dist = std::max(node_dist, on);
           worst = std::max(worst, off);
           ++nodes;
+          // The local foot (the optimisation's sliding nodes) of a point a
+          // little off the node: on the entity, and no farther than the
+          // checked closest point, across seams and at poles.
+          double near[3], foot[3], best[3];
+          for (int d = 0; d < 3; ++d) near[d] = y[d] + 0.03 * diam * (d == 0 ? 1.0 : -0.5);
+          CHECK(placer.local_foot(edim, etag, near, foot), "%s: no local foot near (%g, %g, %g)", c.name, y[0], y[1],
+                y[2]);
+          placer.closest_checked(edim, etag, near, best);
+          occt::Placer::closest(edim, etag, foot, cp);
+          CHECK(occt::detail::dist3(cp, foot) <= tol && occt::detail::dist3(foot, near) <= occt::detail::dist3(best, near) + tol,
+                "%s: local foot (%g, %g, %g) of (%g, %g, %g): %.3g off entity (%d, %d), %.3g from it against %.3g",
+                c.name, foot[0], foot[1], foot[2], near[0], near[1], near[2], occt::detail::dist3(cp, foot), edim, etag,
+                occt::detail::dist3(foot, near), occt::detail::dist3(best, near));
         }
     }
     std::printf("%-9s %6zu %7zu %6zu %6zu %9zu %7zu %12.3e %14.3f %9zu\n", c.name, lm.cells.size() / 4,
@@ -595,6 +608,8 @@ int seam() {
     CHECK(placer.fallbacks == 0, "%s: %zu nodes fell back to closest point (%zu seam, %zu far, %zu on no facet)",
           c.name, placer.fallbacks, placer.fallbacks_seam, placer.fallbacks_far, placer.fallbacks_unlocated);
     CHECK(placer.seam_facets > 0, "%s: no facet straddles the seam", c.name);
+    std::printf("%-9s local feet from the facet under the point: %zu of %zu\n", c.name, placer.facet_feet, nodes);
+    CHECK(placer.facet_feet > nodes / 2, "%s: only %zu of %zu local feet from a facet", c.name, placer.facet_feet, nodes);
     CHECK(!c.pole || placer.pole_facets > 0, "%s: no facet at a pole", c.name);
     gmsh::model::remove();
   }
