@@ -393,10 +393,10 @@ class Placer {
 
   // The foot of x on surface `tag` by Gauss-Newton from the (u,v) of the
   // point of x's facet under it (the candidate facet x is most inside when
-  // projected onto its plane, its vertex parameters unwrapped: facet_info),
-  // into z; returns the facet's vertex nearest to x, or -1 (z unset) if no
-  // facet lies under x or its parametrisation is not a good start (a seam,
-  // a pole, distorted: nearest_foot then). Closer than the nearest vertex's
+  // projected onto its plane, its vertex parameters unwrapped:
+  // facet_params), into z; returns the facet's vertex nearest to x, or -1
+  // (z unset) if no facet lies under x or its parameters span more than
+  // half a period (nearest_foot then). Closer than the nearest vertex's
   // parameters, it takes fewer iterations: on component8 at p = 3, 1.8 a
   // point against 2.6 (screw: 2.6 against 3.4).
   int64_t facet_foot(int tag, const double *x, std::vector<double> &z) {
@@ -411,12 +411,12 @@ class Placer {
       if (score > best_score) best = i, best_score = score, lam[0] = l[0], lam[1] = l[1], lam[2] = l[2];
     }
     if (!(best_score >= -kFacetMargin)) return -1;
-    const FacetInfo &info = facet_info(tag, best);
-    if (info.miss != Miss::None || info.distorted) return -1;
+    const FacetParams &fp = facet_params(tag, best);
+    if (fp.miss != Miss::None) return -1;
     double sum = 0, uv[2];
     for (double &l : lam) sum += (l = std::max(l, 0.0));
     for (double &l : lam) l /= sum;
-    facet_uv(info.uvf, lam, uv);
+    facet_uv(fp.uvf, lam, uv);
     newton(2, tag, x, uv, 30, kFootTolerance * m_.size, &z);
     if (z.size() != 3) return -1;
     int64_t v = -1;
@@ -834,6 +834,38 @@ class Placer {
     double diam = 0;           // longest edge
   };
 
+  // A facet's vertex parameters, unwrapped into one common period, with
+  // their free directions: Miss::Seam if there is no such period (see
+  // facet_info); seam: it straddles the seam; pole: a vertex is on a
+  // singular point. Computed once, and counted nowhere (facet_info counts
+  // the facets the placement uses; the local foot uses these too).
+  struct FacetParams {
+    Facet uvf;
+    Miss miss = Miss::None;
+    bool seam = false, pole = false;
+  };
+  const FacetParams &facet_params(int tag, std::size_t idx) {
+    auto key = std::make_pair(tag, idx);
+    auto it = facet_params_.find(key);
+    if (it != facet_params_.end()) return it->second;
+    FacetParams fp;
+    const auto &f = surface_facets_.at(tag)[idx];
+    const Param &p = param_info(2, tag);
+    for (int i = 0; i < 3; ++i) {
+      const VParam &vp = vertex_param(2, tag, f[i]);
+      for (int k = 0; k < 2; ++k) fp.uvf.uv[i][k] = vp.uv[k], fp.uvf.free[i][k] = vp.free[k];
+      fp.pole = fp.pole || vp.free[0] || vp.free[1];
+    }
+    for (int k = 0; k < 2 && fp.miss == Miss::None; ++k) {
+      int n = 0;
+      for (int i = 0; i < 3; ++i) n += !fp.uvf.free[i][k];
+      const int u = n > 0 && p.period[k] > 0 ? unwrap_shortest(fp.uvf, k, p.lo[k], p.period[k]) : 0;
+      if (n == 0 || u < 0) fp.miss = Miss::Seam;
+      fp.seam = fp.seam || u > 0;
+    }
+    return facet_params_.emplace(key, fp).first->second;
+  }
+
   // Facet `idx` of surface `tag`: vertex parameters in one common period
   // (see unwrap_shortest; a vertex on a singular point, a sphere's pole or a
   // cone's apex, is left out of its free direction and takes, at each node,
@@ -850,23 +882,13 @@ class Placer {
     if (it != facet_info_.end()) return it->second;
     FacetInfo info;
     const auto &f = surface_facets_.at(tag)[idx];
-    const Param &p = param_info(2, tag);
-    Facet &uvf = info.uvf;
-    bool pole = false;
+    const FacetParams &fp = facet_params(tag, idx);
+    const Facet &uvf = info.uvf = fp.uvf;
+    info.miss = fp.miss;
+    const bool seam = fp.seam, pole = fp.pole;
     for (int i = 0; i < 3; ++i) {
-      const VParam &vp = vertex_param(2, tag, f[i]);
-      for (int k = 0; k < 2; ++k) uvf.uv[i][k] = vp.uv[k], uvf.free[i][k] = vp.free[k];
-      pole = pole || vp.free[0] || vp.free[1];
       auto a = vertex(f[i]), b = vertex(f[(i + 1) % 3]);
       info.diam = std::max(info.diam, detail::dist3(a.data(), b.data()));
-    }
-    bool seam = false;
-    for (int k = 0; k < 2 && info.miss == Miss::None; ++k) {
-      int n = 0;
-      for (int i = 0; i < 3; ++i) n += !uvf.free[i][k];
-      const int u = n > 0 && p.period[k] > 0 ? unwrap_shortest(uvf, k, p.lo[k], p.period[k]) : 0;
-      if (n == 0 || u < 0) info.miss = Miss::Seam;
-      seam = seam || u > 0;
     }
     if (seam) ++seam_facets;
     if (info.miss == Miss::None) {
@@ -945,6 +967,7 @@ class Placer {
   std::map<int, detail::Buckets> curve_buckets_, surface_buckets_;
   std::map<EdgeKey, int> feature_;
   std::map<std::pair<int, int>, Param> params_;
+  std::map<std::pair<int, std::size_t>, FacetParams> facet_params_;
   std::map<std::tuple<int, int, int64_t>, VParam> vparam_;
   std::map<std::pair<int, std::size_t>, FacetInfo> facet_info_;
   std::map<EdgeKey, std::vector<std::pair<int, std::size_t>>> edge_facets_;  // (surface, facet index)
