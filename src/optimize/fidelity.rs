@@ -98,10 +98,11 @@ struct Sweep {
     /// (the piece's kind, the first node of its cell in the mesh's cell
     /// list, its entity), by decreasing probe distance.
     order: Vec<(usize, usize, (usize, i32))>,
-    /// The pieces of `order` before this one are sampled in full.
+    /// The pieces of `order` before this one are sampled in full (where
+    /// the projector fails on a piece, `order` ends with it).
     next: usize,
     /// Their largest distance: at most the whole boundary's, and equal to
-    /// it once `next` reaches the end.
+    /// it once `next` reaches the end (if the projector failed nowhere).
     largest: f64,
 }
 
@@ -133,9 +134,11 @@ impl Baseline {
 
     /// Whether `now` is at most the whole boundary's largest distance plus
     /// `slack`, the boundary being the pieces of the mesh `cells`; false if
-    /// the projector fails. Measures the probes on first call, and then only
-    /// the pieces needed (the probes' lower bound, then the pieces in full
-    /// by decreasing probe distance until one is at least `now`).
+    /// the projector fails on the probes, and where it fails on a piece,
+    /// the largest of the pieces before it in the order. Measures the
+    /// probes on first call, and then only the pieces needed (the probes'
+    /// lower bound, then the pieces in full by decreasing probe distance
+    /// until one is at least `now`).
     fn within(
         &self,
         pieces: &Pieces,
@@ -156,9 +159,24 @@ impl Baseline {
         let mut batch = FIRST_BATCH;
         while sweep.next < sweep.order.len() && now > sweep.largest + slack {
             let end = (sweep.next + batch).min(sweep.order.len());
-            let Some(d) = self.measure(pieces, projector, cells, &sweep.order[sweep.next..end]) else { return false };
-            sweep.largest = sweep.largest.max(d);
-            sweep.next = end;
+            if let Some(d) = self.measure(pieces, projector, cells, &sweep.order[sweep.next..end]) {
+                sweep.largest = sweep.largest.max(d);
+                sweep.next = end;
+            } else {
+                // The projector failed in this batch: its pieces one by one,
+                // up to the first that fails, where the sweep ends. So the
+                // answers are those of the pieces before the first failing
+                // one in the order, whatever the batches and the order of
+                // the questions.
+                while sweep.next < end {
+                    let Some(d) = self.measure(pieces, projector, cells, &sweep.order[sweep.next..sweep.next + 1]) else {
+                        break;
+                    };
+                    sweep.largest = sweep.largest.max(d);
+                    sweep.next += 1;
+                }
+                sweep.order.truncate(sweep.next);
+            }
             batch *= 2;
         }
         now <= sweep.largest + slack
@@ -653,10 +671,11 @@ mod tests {
     fn beyond_the_probes_the_pieces_are_sampled_farthest_probe_first_until_one_is_as_far() {
         // Three triangles of order 3 on the unit circle, arcs θ, 3θ and 2θ,
         // the second with a node moved off the circle so that its probe is
-        // not its farthest point: the second's edge has the farthest probe. A slide of the first
-        // beyond that probe but within the second edge's full distance is
-        // settled by that edge alone; beyond it, by every edge. Both answers
-        // are those of the whole boundary measured up front.
+        // not its farthest point: the second's edge has the farthest probe.
+        // A slide of the first beyond that probe but within the second
+        // edge's full distance is settled by that edge alone; beyond it, by
+        // every edge. Both answers are those of the whole boundary measured
+        // up front.
         let (p, theta) = (3, 0.3);
         let (xe, constraint, basis) = arc_triangle(p, theta, 0.0);
         let pieces = Pieces::new(&basis);
@@ -703,6 +722,28 @@ mod tests {
         assert!(!check(&eager, &beyond));
         assert!(!check(&lazy, &beyond));
         assert_eq!(lazy.swept(), Some((3, 3)), "every edge sampled in full");
+        // A projector that fails on the far end of the widest arc (not on
+        // its probe): the sweep ends before that arc, first in the order,
+        // and the answers do not depend on the order of the questions.
+        struct Failing;
+        impl Projector for Failing {
+            fn project(&self, dim: usize, tag: i32, points: &[[f64; 3]], out: &mut [[f64; 3]]) -> Result<(), String> {
+                match points.iter().any(|x| x[1].atan2(x[0]) > 2.5 * 0.3) {
+                    true => Err("off the end".into()),
+                    false => Round.project(dim, tag, points, out),
+                }
+            }
+        }
+        let failing = Mutex::new(&Failing as &dyn Projector);
+        let ask = |before: &Baseline, after: &[f64]| {
+            pieces.faithful(&failing, &first, &cells, &constraint, &moved, &[after.to_vec()], before, 1.0)
+        };
+        let (one, two) = (Baseline::new(&coords), Baseline::new(&coords));
+        let first_order = (ask(&one, &inside), ask(&one, &beyond));
+        let second_order = (ask(&two, &beyond), ask(&two, &inside));
+        assert_eq!(first_order, (second_order.1, second_order.0));
+        assert_eq!(first_order, (false, false), "the widest arc is not measured");
+        assert_eq!((one.swept(), two.swept()), (Some((0, 0)), Some((0, 0))));
     }
 
     #[test]
