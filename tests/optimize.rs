@@ -226,6 +226,23 @@ fn polishing_raises_the_smallest_quality_when_no_cell_is_below_the_threshold() {
     assert_boundary_kept(&on);
 }
 
+/// A mesh with nothing curved: every cell stays affine, Q3 = 1 up to
+/// round-off, and the stage leaves it alone instead of polishing round-off.
+#[test]
+fn a_straight_mesh_comes_back_untouched_by_the_optimisation() {
+    let mesh = common::kuhn_cube(2, 0.1);
+    let projector = ShapeProjector::new();
+    let mut opts = CurveOptions { order: 4, ..Default::default() };
+    opts.optimize.enabled = false;
+    let off = run(&mesh, &projector, &opts).unwrap();
+    opts.optimize.enabled = true;
+    let on = run(&mesh, &projector, &opts).unwrap();
+    let r = &on.report.optimization;
+    assert!(!r.ran && r.cells_touched == 0 && r.nodes_moved == 0, "{r:?}");
+    assert_eq!(on.mesh.coords, off.mesh.coords);
+    assert!(on.report.quality.min_q3 > 0.999_999, "{}", on.report.quality.min_q3);
+}
+
 /// The largest distance from the sphere of the curved boundary between its
 /// nodes: every cell face whose nodes all lie on the sphere, sampled at the
 /// points of the order-2p lattice that are not nodes.
