@@ -69,18 +69,17 @@ fn coarse_sphere_at_p4_comes_out_certified_valid_with_adaptive_stepping() {
         assert!(r.load_fractions.windows(2).all(|w| w[0] < w[1]));
         assert!(r.step_backs.iter().all(|b| b.reason == StepBackReason::CertifiedInvalid && b.cell.is_some()));
 
-        // With the optimisation stage (the default), a cell that rejects a
-        // second step of the same increment hands the run over to it: in
-        // one increment, cell 0 rejects the steps from 0 and from 0.5.
+        // With the optimisation stage (the default), a cell that rejects the
+        // whole load in one step hands the run over to it at once (cell 0
+        // here, which also rejects the step from 0.5: see the test below).
         let handed = run(&case, &base).unwrap();
         println!("adaptive ILE + optimisation, {increments} increment(s): {}", describe(&handed));
         let h = &handed.report;
         assert_eq!((h.quality.n_certified_invalid, h.quality.n_uncertain), (0, 0));
         assert!(h.quality.min_q3 > r.quality.min_q3, "{} vs {}", h.quality.min_q3, r.quality.min_q3);
         if increments == 1 {
-            let stop = h.elastic_stop.as_ref().expect("the elastic stage stopped at the second rejection");
-            assert_eq!((stop.load, stop.cell), (0.5, Some(0)));
-            assert!(h.solves.len() < r.solves.len(), "{} solves against {}", h.solves.len(), r.solves.len());
+            let stop = h.elastic_stop.as_ref().expect("the elastic stage stopped at the first rejection");
+            assert_eq!((stop.load, stop.cell, h.solves.len()), (0.0, Some(0), 1));
         }
     }
 }
@@ -174,26 +173,32 @@ fn the_split_limit_fails_clearly_and_leaves_the_mesh_unchanged() {
     assert!(s.set_adaptive(None, 31).is_err());
 }
 
-/// The handed-over case above, with the iterative solver: the halved retry
-/// from load 0 is a linear solve with the first one's matrix and a scaled
-/// right-hand side, so it starts from its solution scaled and needs no
-/// iteration; the rest of the load on the straight mesh is that solution
-/// scaled, and is not solved at all (that both give the scaled solution:
-/// tests/patch_test.rs).
+/// The case above in one increment, with the iterative solver. The elastic
+/// stage alone: the halved retry from load 0 is a linear solve with the
+/// first one's matrix and a scaled right-hand side, so it starts from its
+/// solution scaled and needs no iteration, and cell 0 rejects the second
+/// half too. With the optimisation, the run is handed over at the first
+/// rejection: the rest of the load on the straight mesh, the whole load, is
+/// the first solution, and is not solved again (that both give the scaled
+/// solution: tests/patch_test.rs); the mesh handed over is the same.
 #[test]
 fn retried_and_finishing_solves_start_from_the_first_solution_scaled() {
     use hocurve::solver::SolverChoice;
     let case = cases::sphere_in_box_3d(1, 2);
-    let base = CurveOptions { order: 4, increments: 1, poisson: 0.45, ..Default::default() };
-    let iterative = run(&case, &CurveOptions { solver: SolverChoice::Iterative, ..base }).unwrap();
-    let r = &iterative.report;
-    println!("iterative: {}; iterations {:?}", describe(&iterative), r.solves.iterations);
-    assert_eq!(r.elastic_stop.as_ref().map(|s| s.load), Some(0.5));
+    let base = CurveOptions { order: 4, increments: 1, poisson: 0.45, solver: SolverChoice::Iterative, ..Default::default() };
+    let alone = run(&case, &CurveOptions { optimize: off(), ..base.clone() }).unwrap();
+    let r = &alone.report;
+    println!("elastic stage alone: {}; iterations {:?}", describe(&alone), r.solves.iterations);
     let it = &r.solves.iterations;
-    // 1 from 0 (rejected), 0.5 from 0 (its half), 0.5 from 0.5 (rejected);
-    // the rest from 0 is the first solution scaled.
-    assert_eq!(it.len(), 3, "{it:?}");
-    assert!(it[0] > 0 && it[1] == 0 && it[2] > 0, "{it:?}");
-    assert!(r.solves.fallback.iter().all(|f| f.is_none()));
-    assert_eq!(r.quality.n_certified_invalid, 0);
+    // 1 from 0 (rejected), 0.5 from 0 (its half), 0.5 from 0.5 (rejected by cell 0 again), ...
+    assert!(it.len() > 3 && it[0] > 0 && it[1] == 0 && it[2] > 0, "{it:?}");
+    assert_eq!(r.step_backs[..2].iter().map(|b| (b.load, b.cell)).collect::<Vec<_>>(), [(0.0, Some(0)), (0.5, Some(0))]);
+
+    let handed = run(&case, &base).unwrap();
+    let h = &handed.report;
+    println!("with the optimisation: {}; iterations {:?}", describe(&handed), h.solves.iterations);
+    assert_eq!(h.elastic_stop.as_ref().map(|s| s.load), Some(0.0));
+    assert_eq!(h.solves.iterations, it[..1]);
+    assert!(h.solves.fallback.iter().all(|f| f.is_none()));
+    assert_eq!(h.quality.n_certified_invalid, 0);
 }
