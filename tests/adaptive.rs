@@ -185,14 +185,18 @@ fn the_split_limit_fails_clearly_and_leaves_the_mesh_unchanged() {
 fn retried_and_finishing_solves_start_from_the_first_solution_scaled() {
     use hocurve::solver::SolverChoice;
     let case = cases::sphere_in_box_3d(1, 2);
-    let base = CurveOptions { order: 4, increments: 1, poisson: 0.45, solver: SolverChoice::Iterative, ..Default::default() };
+    let base =
+        CurveOptions { order: 4, increments: 1, poisson: 0.45, solver: SolverChoice::Iterative, ..Default::default() };
     let alone = run(&case, &CurveOptions { optimize: off(), ..base.clone() }).unwrap();
     let r = &alone.report;
     println!("elastic stage alone: {}; iterations {:?}", describe(&alone), r.solves.iterations);
     let it = &r.solves.iterations;
     // 1 from 0 (rejected), 0.5 from 0 (its half), 0.5 from 0.5 (rejected by cell 0 again), ...
     assert!(it.len() > 3 && it[0] > 0 && it[1] == 0 && it[2] > 0, "{it:?}");
-    assert_eq!(r.step_backs[..2].iter().map(|b| (b.load, b.cell)).collect::<Vec<_>>(), [(0.0, Some(0)), (0.5, Some(0))]);
+    assert_eq!(
+        r.step_backs[..2].iter().map(|b| (b.load, b.cell)).collect::<Vec<_>>(),
+        [(0.0, Some(0)), (0.5, Some(0))]
+    );
 
     let handed = run(&case, &base).unwrap();
     let h = &handed.report;
