@@ -616,15 +616,13 @@ impl<'a> PatchContext<'a> {
             // work: on SampleCrankshaft4A, whose worst cells stay below the
             // threshold, 1.55 times the cells evaluated at p = 2).
             if tangent_first {
-                let mut at = pos.clone();
-                work.slide(projector, &mut at, &mut best, true);
-                if best.0 .0 > 0 || best.0 .1 < slide_below {
-                    at.clone_from(&best.1);
-                    work.slide(projector, &mut at, &mut best, false);
+                work.slide(projector, &mut pos, &mut best, true);
+                if best.0 .0 == 0 && best.0 .1 >= slide_below {
+                    return result(best);
                 }
-            } else {
-                work.slide(projector, &mut pos, &mut best, false);
+                pos.clone_from(&best.1);
             }
+            work.slide(projector, &mut pos, &mut best, false);
         }
         result(best)
     }
