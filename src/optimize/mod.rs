@@ -336,12 +336,20 @@ impl<'s, 'p> Stage<'s, 'p> {
         parent
     }
 
-    /// First rounds: invalid and low-quality cells, the cheap sample rule first.
+    /// First rounds: invalid and low-quality cells, the cheap sample rule
+    /// first. The second, on larger patches and the fine rule, runs only
+    /// while some cell is invalid: when the first left every cell valid,
+    /// the polish lifts the floor at less cost. On U_Joint_2 at p = 4 the
+    /// second round spent 7.5 s on 1,666 cells for the same floor (0.130),
+    /// and the polish then stopped at 0.152; without it, 0.194. On the
+    /// crankshaft at p = 4, 40 % of the projections and a third of the
+    /// stage's time less, the same floor; on the robustness corpus at
+    /// p = 2..4 one run of 171 changed, 0.128 to 0.153.
     fn first_rounds(&mut self, state: &mut MeshState) {
         let ctx = self.ctx;
         for (k, &layers) in FIRST_LAYERS.iter().enumerate() {
             let seeds = state.selected(true, self.threshold);
-            if seeds.is_empty() {
+            if seeds.is_empty() || (k > 0 && invalid_count(state.certified) == 0) {
                 break;
             }
             let rule = if k == 0 { &ctx.coarse } else { &ctx.fine };
@@ -1390,6 +1398,29 @@ mod tests {
         let (_, with, invalid) = polish(true);
         assert_eq!(invalid, 0);
         assert!(with > before * (1.0 + POLISH_GAIN), "{before} -> {with} (without the retry: {without})");
+    }
+
+    /// The first rounds on cells that are all valid but below the
+    /// threshold: one round, on one-layer patches; the larger second round
+    /// is for invalid cells only.
+    #[test]
+    fn the_second_first_round_runs_only_while_a_cell_is_invalid() {
+        let (mut mesh, mut straight, basis) = jittered_annulus();
+        let sampling = quality::sampling_cache(&basis);
+        let ctx = PatchContext::new(&basis, &sampling);
+        let (mut q, mut cert): (Vec<_>, Vec<_>) = (0..mesh.n_cells())
+            .map(|c| ctx.cell_state(&mesh.coords, mesh.cell(c), &straight))
+            .map(|s| (s.q, s.cert))
+            .unzip();
+        assert_eq!(invalid_count(&cert), 0);
+        // Every cell below the threshold, before and after a round.
+        let opts = OptimizeOptions { threshold: 1.1, ..OptimizeOptions::default() };
+        let mut state = MeshState { mesh: &mut mesh, straight: &mut straight, cell_quality: &mut q, certified: &mut cert };
+        let mut report = OptimizeReport::default();
+        let mut stage = Stage::new(&ctx, None, &opts, &state, &mut report);
+        stage.first_rounds(&mut state);
+        assert_eq!(invalid_count(state.certified), 0);
+        assert_eq!(report.rounds, 1);
     }
 
     #[test]
