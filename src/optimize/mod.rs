@@ -1270,16 +1270,22 @@ mod tests {
         (mesh, straight, LagrangeBasis::new(&nodes))
     }
 
+    /// The quality and certified verdict of every cell of `mesh`.
+    fn cell_states(
+        ctx: &PatchContext,
+        mesh: &HighOrderMesh,
+        straight: &[f64],
+    ) -> (Vec<ElementQuality>, Vec<CertifiedJacobian>) {
+        (0..mesh.n_cells()).map(|c| ctx.cell_state(&mesh.coords, mesh.cell(c), straight)).map(|s| (s.q, s.cert)).unzip()
+    }
+
     #[test]
     fn a_patch_energy_weighs_its_focused_cells_its_gradient_matches_finite_differences_and_threads_do_not_change_it() {
         let (mesh, straight, basis) = jittered_annulus();
         let (dim, npc) = (2, mesh.nodes_per_cell());
         let sampling = quality::sampling_cache(&basis);
         let ctx = PatchContext::new(&basis, &sampling);
-        let (q, cert): (Vec<_>, Vec<_>) = (0..mesh.n_cells())
-            .map(|c| ctx.cell_state(&mesh.coords, mesh.cell(c), &straight))
-            .map(|s| (s.q, s.cert))
-            .unzip();
+        let (q, cert) = cell_states(&ctx, &mesh, &straight);
         let view = MeshView {
             coords: &mesh.coords,
             cells: &mesh.cells,
@@ -1378,10 +1384,7 @@ mod tests {
         ctx.coarse = SampleRule::new(tab.dim, tab.n_basis, vec![0.0], &tab.grads);
         let polish = |fine_retry: bool| {
             let (mut mesh, mut straight) = (mesh.clone(), straight.clone());
-            let (mut q, mut cert): (Vec<_>, Vec<_>) = (0..mesh.n_cells())
-                .map(|c| ctx.cell_state(&mesh.coords, mesh.cell(c), &straight))
-                .map(|s| (s.q, s.cert))
-                .unzip();
+            let (mut q, mut cert) = cell_states(&ctx, &mesh, &straight);
             assert_eq!(invalid_count(&cert), 0);
             let before = min_q3(&q);
             let mut state =
@@ -1408,10 +1411,7 @@ mod tests {
         let (mut mesh, mut straight, basis) = jittered_annulus();
         let sampling = quality::sampling_cache(&basis);
         let ctx = PatchContext::new(&basis, &sampling);
-        let (mut q, mut cert): (Vec<_>, Vec<_>) = (0..mesh.n_cells())
-            .map(|c| ctx.cell_state(&mesh.coords, mesh.cell(c), &straight))
-            .map(|s| (s.q, s.cert))
-            .unzip();
+        let (mut q, mut cert) = cell_states(&ctx, &mesh, &straight);
         assert_eq!(invalid_count(&cert), 0);
         // Every cell below the threshold, before and after a round.
         let opts = OptimizeOptions { threshold: 1.1, ..OptimizeOptions::default() };
