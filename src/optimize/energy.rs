@@ -24,45 +24,104 @@ use crate::mapping;
 pub const SIZE_WEIGHT: f64 = 0.5;
 
 /// μ(F) and ∂μ/∂F at one point, or None where it is infinite (δ = 0 and
-/// J ≤ 0, or a non-finite F).
-#[inline(always)]
+/// J ≤ 0, or a non-finite F): [`distortion_lanes`] with one lane.
+#[cfg(test)]
 pub fn distortion(dim: usize, f: &Mat3, delta: f64) -> Option<(f64, Mat3)> {
-    let j = linalg::det(dim, f);
-    let s = (j * j + 4.0 * delta * delta).sqrt();
-    let sigma = 0.5 * (j + s);
-    if sigma.is_nan() || sigma <= 0.0 || !sigma.is_finite() {
-        return None;
-    }
-    let d = dim as f64;
-    let mut ff = 0.0;
-    for i in 0..dim {
-        for k in 0..dim {
-            ff += f[i][k] * f[i][k];
-        }
-    }
+    let lanes = f.map(|row| row.map(|v| [v]));
+    let (mut mu, mut g) = ([0.0], [[[0.0]; 3]; 3]);
+    let finite = match dim {
+        2 => distortion_lanes::<2, 1>(&lanes, delta, 1, &mut mu, &mut g),
+        _ => distortion_lanes::<3, 1>(&lanes, delta, 1, &mut mu, &mut g),
+    };
+    finite.then(|| (mu[0], g.map(|row| row.map(|v| v[0]))))
+}
+
+/// L matrices of D×D, lane l of entry (i, k) at `[i][k][l]`.
+type MatLanes<const L: usize> = [[[f64; L]; 3]; 3];
+
+/// μ(F) and ∂μ/∂F (module docs) at L points at once, lane l being the point with F =
+/// `f[·][·][l]`: μ into `mu`, ∂μ/∂F into `g`. Every lane takes the same
+/// operations in the same order, with no branch but where the cube root
+/// leaves the normal range, so that the compiler runs the lanes in vector
+/// registers. False if μ is infinite at one of the first `live` lanes (the
+/// others are not looked at).
+#[inline(always)]
+fn distortion_lanes<const D: usize, const L: usize>(
+    f: &MatLanes<L>,
+    delta: f64,
+    live: usize,
+    mu: &mut [f64; L],
+    g: &mut MatLanes<L>,
+) -> bool {
+    // Each statement is one loop over the lanes, with no branch in it: the
+    // form the compiler's vectoriser takes. The expressions are those of
+    // `linalg::det` and `linalg::cofactor`, in the same order.
+    let m = |i: usize, k: usize| &f[i][k];
+    let j = if D == 2 {
+        let (a, b, c, e) = (m(0, 0), m(1, 1), m(0, 1), m(1, 0));
+        lanes::<L>(|l| a[l] * b[l] - c[l] * e[l])
+    } else {
+        let minor = |r: usize, c0: usize, c1: usize| {
+            let (a, b, c, e) = (m(r, c0), m(r + 1, c1), m(r, c1), m(r + 1, c0));
+            lanes::<L>(|l| a[l] * b[l] - c[l] * e[l])
+        };
+        let (m12_12, m12_02, m12_01) = (minor(1, 1, 2), minor(1, 0, 2), minor(1, 0, 1));
+        let (a, b, c) = (m(0, 0), m(0, 1), m(0, 2));
+        lanes::<L>(|l| a[l] * m12_12[l] - b[l] * m12_02[l] + c[l] * m12_01[l])
+    };
+    let s = lanes::<L>(|l| (j[l] * j[l] + 4.0 * delta * delta).sqrt());
+    let sigma = lanes::<L>(|l| 0.5 * (j[l] + s[l]));
     // σ^(2/d) without powf (a tenth of the optimisation's time when it was
     // powf), nor Rust's correctly rounded cbrt (as much again).
-    let scale = if dim == 3 {
-        let c = linalg::cbrt_positive(sigma);
-        c * c
+    let scale = if D == 3 {
+        let c = linalg::cbrt_positive_lanes(&sigma);
+        lanes::<L>(|l| c[l] * c[l])
     } else {
         sigma
     };
-    let shape = ff / (d * scale);
-    let size = (j * j + 1.0) / (2.0 * sigma) - 1.0;
-    let mu = shape + SIZE_WEIGHT * size;
-    // dσ/dJ = σ / s (s > 0 since σ > 0).
-    let dsigma = sigma / s;
-    let dmu_dsigma = -(2.0 / d) * shape / sigma - SIZE_WEIGHT * (j * j + 1.0) / (2.0 * sigma * sigma);
-    let dmu_dj = SIZE_WEIGHT * j / sigma + dmu_dsigma * dsigma;
-    let cof = linalg::cofactor(dim, f);
-    let mut g = [[0.0; 3]; 3];
-    for i in 0..dim {
-        for k in 0..dim {
-            g[i][k] = 2.0 * f[i][k] / (d * scale) + dmu_dj * cof[i][k];
+    let d = D as f64;
+    let mut ff = [0.0; L];
+    for row in &f[..D] {
+        for v in &row[..D] {
+            for l in 0..L {
+                ff[l] += v[l] * v[l];
+            }
         }
     }
-    mu.is_finite().then_some((mu, g))
+    let shape = lanes::<L>(|l| ff[l] / (d * scale[l]));
+    let size = lanes::<L>(|l| (j[l] * j[l] + 1.0) / (2.0 * sigma[l]) - 1.0);
+    *mu = lanes::<L>(|l| shape[l] + SIZE_WEIGHT * size[l]);
+    // dσ/dJ = σ / s (s > 0 where σ > 0).
+    let dmu_dj = lanes::<L>(|l| {
+        let dsigma = sigma[l] / s[l];
+        let dmu_dsigma =
+            -(2.0 / d) * shape[l] / sigma[l] - SIZE_WEIGHT * (j[l] * j[l] + 1.0) / (2.0 * sigma[l] * sigma[l]);
+        SIZE_WEIGHT * j[l] / sigma[l] + dmu_dsigma * dsigma
+    });
+    for i in 0..D {
+        for k in 0..D {
+            // The cofactor of entry (i, k).
+            let cof = if D == 2 {
+                let (v, sign) = (m(1 - i, 1 - k), if i == k { 1.0 } else { -1.0 });
+                lanes::<L>(|l| if sign > 0.0 { v[l] } else { -v[l] })
+            } else {
+                let (i1, i2, k1, k2) = ((i + 1) % 3, (i + 2) % 3, (k + 1) % 3, (k + 2) % 3);
+                let (a, b, c, e) = (m(i1, k1), m(i2, k2), m(i1, k2), m(i2, k1));
+                lanes::<L>(|l| a[l] * b[l] - c[l] * e[l])
+            };
+            let fik = m(i, k);
+            g[i][k] = lanes::<L>(|l| 2.0 * fik[l] / (d * scale[l]) + dmu_dj[l] * cof[l]);
+        }
+    }
+    // σ ≤ 0 (J ≤ 0 with δ = 0), or a non-finite F.
+    let bad = lanes::<L>(|l| f64::from(!(sigma[l] > 0.0 && sigma[l].is_finite() && mu[l].is_finite())));
+    bad[..live].iter().all(|&b| b == 0.0)
+}
+
+/// `[op(0), .., op(L - 1)]`.
+#[inline(always)]
+fn lanes<const L: usize>(op: impl Fn(usize) -> f64) -> [f64; L] {
+    std::array::from_fn(op)
 }
 
 /// The sample points of one element, with the physical gradients of the
@@ -77,6 +136,10 @@ pub struct ElementSamples {
 /// Lanes of the sums over the sample points in [`SampleRule::energy_grad`]:
 /// independent partial sums, which the compiler keeps in vector registers.
 const LANES: usize = 8;
+
+/// Sample points whose μ and ∂μ/∂F [`SampleRule::energy_grad`] computes at
+/// once, one per vector lane.
+const POINT_LANES: usize = 4;
 
 thread_local! {
     /// F (then w ∂μ/∂F) at every sample point, `(i * dim + k) * n_points + q`.
@@ -150,18 +213,38 @@ impl SampleRule {
     }
 
     /// Σ_a x_a,i ∂N_a/∂ξ_j at every sample point into `fq[(i * D + j) * n_points + q]`.
+    ///
+    /// [`LANES`] points at a time, the D sums of a direction j held in
+    /// registers over the nodes (each sum over a in increasing a, as the
+    /// remaining points take them one by one).
     #[inline(always)]
     fn reference_deformations_into<const D: usize>(&self, xe: &[f64], fq: &mut Vec<f64>) {
-        let nq = self.n_points();
+        let (nq, n) = (self.n_points(), self.n_basis);
         fq.clear();
         fq.resize(D * D * nq, 0.0);
-        for (a, xa) in xe[..self.n_basis * D].chunks_exact(D).enumerate() {
-            for j in 0..D {
-                let g = &self.ref_grads[(a * D + j) * nq..][..nq];
-                for (i, &x) in xa.iter().enumerate() {
-                    for (f, &gq) in fq[(i * D + j) * nq..][..nq].iter_mut().zip(g) {
-                        *f += x * gq;
+        let full = nq - nq % LANES;
+        for j in 0..D {
+            for q0 in (0..full).step_by(LANES) {
+                let mut acc = [[0.0; LANES]; D];
+                for (a, xa) in xe[..n * D].chunks_exact(D).enumerate() {
+                    let g = &self.ref_grads[(a * D + j) * nq + q0..][..LANES];
+                    for (acc, &x) in acc.iter_mut().zip(xa) {
+                        for l in 0..LANES {
+                            acc[l] += x * g[l];
+                        }
                     }
+                }
+                for (i, acc) in acc.iter().enumerate() {
+                    fq[(i * D + j) * nq + q0..][..LANES].copy_from_slice(acc);
+                }
+            }
+            for q in full..nq {
+                for i in 0..D {
+                    let mut v = 0.0;
+                    for a in 0..n {
+                        v += xe[a * D + i] * self.ref_grads[(a * D + j) * nq + q];
+                    }
+                    fq[(i * D + j) * nq + q] = v;
                 }
             }
         }
@@ -208,8 +291,8 @@ impl SampleRule {
             crate::linalg::with_avx2(
                 #[inline(always)]
                 || match self.dim {
-                    2 => self.energy_grad_in::<2>(e, xe, delta, grad, fq),
-                    _ => self.energy_grad_in::<3>(e, xe, delta, grad, fq),
+                    2 => self.energy_grad_in::<2, POINT_LANES>(e, xe, delta, grad, fq),
+                    _ => self.energy_grad_in::<3, POINT_LANES>(e, xe, delta, grad, fq),
                 },
             )
         })
@@ -217,11 +300,11 @@ impl SampleRule {
 
     /// [`Self::energy_grad`] in dimension `D`, with `fq` for the values at
     /// the points: F at every point (sums over the nodes, in SIMD lanes over
-    /// the points), μ and P = ∂μ/∂F point by point, then ∂/∂x_a,i = Σ_q w_q
-    /// Σ_j (P W⁻ᵀ)_ij ∂N_a/∂ξ_j (sums over the points, in [`LANES`] partial
-    /// sums).
+    /// the points), μ and P = ∂μ/∂F L points at a time, then
+    /// ∂/∂x_a,i = Σ_q w_q Σ_j (P W⁻ᵀ)_ij ∂N_a/∂ξ_j (sums over the points, in
+    /// [`LANES`] partial sums).
     #[inline(always)]
-    fn energy_grad_in<const D: usize>(
+    fn energy_grad_in<const D: usize, const L: usize>(
         &self,
         e: &ElementSamples,
         xe: &[f64],
@@ -232,31 +315,58 @@ impl SampleRule {
         let (nq, w_inv) = (self.n_points(), &e.w_inv);
         self.reference_deformations_into::<D>(xe, fq);
         let mut total = 0.0;
-        for (q, &w) in self.weights.iter().enumerate() {
-            let (mu, p) = distortion(D, &Self::point::<D>(fq, nq, q, w_inv), delta)?;
-            total += w * mu;
-            for (i, row) in p.iter().enumerate().take(D) {
+        for q0 in (0..nq).step_by(L) {
+            let live = L.min(nq - q0);
+            // F = F_ref W⁻¹ at the live lanes; the others the identity.
+            let mut f: MatLanes<L> = std::array::from_fn(|i| std::array::from_fn(|k| [f64::from(i == k); L]));
+            for i in 0..D {
+                for k in 0..D {
+                    for (l, v) in f[i][k][..live].iter_mut().enumerate() {
+                        *v = 0.0;
+                        for (j, w) in w_inv.iter().enumerate().take(D) {
+                            *v += fq[(i * D + j) * nq + q0 + l] * w[k];
+                        }
+                    }
+                }
+            }
+            let (mut mu, mut p) = ([0.0; L], [[[0.0; L]; 3]; 3]);
+            if !distortion_lanes::<D, L>(&f, delta, live, &mut mu, &mut p) {
+                return None;
+            }
+            for (l, m) in mu[..live].iter().enumerate() {
+                total += self.weights[q0 + l] * m;
+            }
+            for i in 0..D {
                 for (j, wj) in w_inv.iter().enumerate().take(D) {
-                    let v: f64 = (0..D).map(|k| row[k] * wj[k]).sum();
-                    fq[(i * D + j) * nq + q] = w * v;
+                    for l in 0..live {
+                        let v: f64 = (0..D).map(|k| p[i][k][l] * wj[k]).sum();
+                        fq[(i * D + j) * nq + q0 + l] = self.weights[q0 + l] * v;
+                    }
                 }
             }
         }
+        // The D components of node a together, so that each gradient chunk
+        // is loaded once for all of them.
         for (a, out) in grad[..self.n_basis * D].chunks_exact_mut(D).enumerate() {
-            for (i, o) in out.iter_mut().enumerate() {
-                let mut lanes = [0.0f64; LANES];
-                let mut tail = 0.0;
-                for j in 0..D {
+            let mut lanes = [[0.0f64; LANES]; D];
+            let mut tail = [0.0; D];
+            for j in 0..D {
+                let g = &self.ref_grads[(a * D + j) * nq..][..nq];
+                let gc = g.chunks_exact(LANES);
+                for i in 0..D {
                     let pw = &fq[(i * D + j) * nq..][..nq];
-                    let g = &self.ref_grads[(a * D + j) * nq..][..nq];
-                    let (pc, gc) = (pw.chunks_exact(LANES), g.chunks_exact(LANES));
-                    tail += pc.remainder().iter().zip(gc.remainder()).map(|(x, y)| x * y).sum::<f64>();
-                    for (x, y) in pc.zip(gc) {
+                    tail[i] += pw[nq - gc.remainder().len()..].iter().zip(gc.remainder()).map(|(x, y)| x * y).sum::<f64>();
+                }
+                for (c, y) in gc.enumerate() {
+                    for (i, lanes) in lanes.iter_mut().enumerate() {
+                        let x = &fq[(i * D + j) * nq + c * LANES..][..LANES];
                         for l in 0..LANES {
                             lanes[l] += x[l] * y[l];
                         }
                     }
                 }
+            }
+            for ((o, lanes), tail) in out.iter_mut().zip(&lanes).zip(tail) {
                 *o += lanes.iter().sum::<f64>() + tail;
             }
         }
@@ -280,8 +390,10 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_avx2_copy_gives_bitwise_the_portable_energy_and_gradient() {
+    fn the_avx2_copy_and_one_point_at_a_time_give_bitwise_the_same_energy_and_gradient() {
         use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing, Simplex};
+        // 55 and 364 sample points: a last batch of 3 points and a full one,
+        // and 7 and 4 points past the last chunk of LANES in the sums over the nodes.
         for (simplex, p) in [(Simplex::Tri, 4), (Simplex::Tet, 5)] {
             let basis = LagrangeBasis::new(&NodeSet::new(simplex, p, NodeSpacing::Optimal));
             let points = NodeSet::new(simplex, 2 * p + 1, NodeSpacing::Equispaced);
@@ -292,16 +404,53 @@ mod tests {
             let xe: Vec<f64> =
                 xs.iter().enumerate().map(|(k, x)| x + 0.02 * ((k * 7919 % 101) as f64 / 101.0 - 0.5)).collect();
             let e = rule.element(&xs).unwrap();
-            let (mut dispatched, mut portable) = (vec![0.0; xe.len()], vec![0.0; xe.len()]);
-            let v = rule.energy_grad(&e, &xe, 0.1, &mut dispatched).unwrap();
-            let w = match dim {
-                2 => rule.energy_grad_in::<2>(&e, &xe, 0.1, &mut portable, &mut Vec::new()),
-                _ => rule.energy_grad_in::<3>(&e, &xe, 0.1, &mut portable, &mut Vec::new()),
+            for delta in [0.0, 0.1] {
+                let mut dispatched = vec![0.0; xe.len()];
+                let v = rule.energy_grad(&e, &xe, delta, &mut dispatched).unwrap();
+                let (mut lanes, mut single) = (vec![0.0; xe.len()], vec![0.0; xe.len()]);
+                let (w, u) = match dim {
+                    2 => (
+                        rule.energy_grad_in::<2, POINT_LANES>(&e, &xe, delta, &mut lanes, &mut Vec::new()),
+                        rule.energy_grad_in::<2, 1>(&e, &xe, delta, &mut single, &mut Vec::new()),
+                    ),
+                    _ => (
+                        rule.energy_grad_in::<3, POINT_LANES>(&e, &xe, delta, &mut lanes, &mut Vec::new()),
+                        rule.energy_grad_in::<3, 1>(&e, &xe, delta, &mut single, &mut Vec::new()),
+                    ),
+                };
+                let (w, u) = (w.unwrap(), u.unwrap());
+                assert_eq!(v.to_bits(), w.to_bits(), "{simplex:?}: {v} vs {w}");
+                assert_eq!(v.to_bits(), u.to_bits(), "{simplex:?}: {v} vs {u}");
+                let same = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
+                assert!(same(&dispatched, &lanes) && same(&dispatched, &single), "{simplex:?}");
+                assert!(dispatched.iter().any(|&g| g != 0.0));
+                // And the same energy as the point-by-point definition.
+                let reference = rule.energy(&e, &xe, delta).unwrap();
+                assert!((v - reference).abs() <= 1e-12 * reference, "{v} vs {reference}");
             }
-            .unwrap();
-            assert_eq!(v.to_bits(), w.to_bits(), "{simplex:?}: {v} vs {w}");
-            assert!(dispatched.iter().zip(&portable).all(|(a, b)| a.to_bits() == b.to_bits()), "{simplex:?}");
-            assert!(dispatched.iter().any(|&g| g != 0.0));
+        }
+    }
+
+    #[test]
+    fn an_inverted_point_in_any_batch_makes_the_unregularised_energy_infinite() {
+        use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing, Simplex};
+        let basis = LagrangeBasis::new(&NodeSet::new(Simplex::Tri, 2, NodeSpacing::Optimal));
+        let xs: Vec<f64> = basis.nodes().coords.iter().flat_map(|c| c[..2].to_vec()).collect();
+        let e = SampleRule::new(2, 6, vec![1.0], &basis.tabulate(&[[0.0; 3]]).grads).element(&xs).unwrap();
+        // The mid-edge node of edge (1, 2) pulled far past vertex 0: det J < 0
+        // near vertex 0 only. One sample point of nine, in each of its places.
+        let mut xe = xs.clone();
+        let far = (0..6).find(|&a| (xs[2 * a] - 0.5).abs() < 1e-12 && (xs[2 * a + 1] - 0.5).abs() < 1e-12).unwrap();
+        xe[2 * far] = -1.5;
+        xe[2 * far + 1] = -1.5;
+        for place in 0..9 {
+            let mut coords = vec![[0.3, 0.3, 0.0]; 9];
+            coords[place] = [0.0, 0.0, 0.0];
+            let rule = SampleRule::new(2, 6, vec![1.0 / 9.0; 9], &basis.tabulate(&coords).grads);
+            let mut g = vec![0.0; 12];
+            assert!(rule.min_det(&e, &xe) < 0.0);
+            assert!(rule.energy_grad(&e, &xe, 0.0, &mut g).is_none(), "inverted point {place}");
+            assert!(rule.energy_grad(&e, &xe, 0.1, &mut g).is_some());
         }
     }
 
