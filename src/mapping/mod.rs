@@ -18,6 +18,8 @@ pub struct ElementCache {
     pub ref_grads: Vec<f64>,
     /// `values[q * n_basis + a]` = N_a at point q.
     pub values: Vec<f64>,
+    /// The gradients again, the points innermost ([`PointGradients`]).
+    pub by_point: PointGradients,
 }
 
 impl ElementCache {
@@ -27,6 +29,7 @@ impl ElementCache {
             dim: tab.dim,
             n_basis: tab.n_basis,
             weights: rule.weights.clone(),
+            by_point: PointGradients::new(tab.dim, tab.n_basis, &tab.grads),
             ref_grads: tab.grads,
             values: tab.values,
         }
@@ -39,6 +42,7 @@ impl ElementCache {
             dim: tab.dim,
             n_basis: tab.n_basis,
             weights: vec![0.0; points.len()],
+            by_point: PointGradients::new(tab.dim, tab.n_basis, &tab.grads),
             ref_grads: tab.grads,
             values: tab.values,
         }
@@ -51,6 +55,85 @@ impl ElementCache {
     pub fn grads_at(&self, q: usize) -> &[f64] {
         let s = self.n_basis * self.dim;
         &self.ref_grads[q * s..(q + 1) * s]
+    }
+}
+
+/// Reference gradients of the basis at a set of points, laid out
+/// `[(a * dim + j) * n_points + q]` = ∂N_a/∂ξ_j at point q: the points
+/// innermost, so that sums over the nodes run in SIMD lanes over the points.
+#[derive(Debug, Clone)]
+pub struct PointGradients {
+    pub dim: usize,
+    pub n_basis: usize,
+    n_points: usize,
+    grads: Vec<f64>,
+}
+
+/// Points whose sums [`PointGradients::jacobians_into`] keeps in registers at once.
+const POINT_CHUNK: usize = 8;
+
+impl PointGradients {
+    /// From gradients laid out as [`crate::reference::Tabulation::grads`]
+    /// (`(q * n_basis + a) * dim + j`).
+    pub fn new(dim: usize, n_basis: usize, grads: &[f64]) -> PointGradients {
+        let n_points = grads.len() / (n_basis * dim).max(1);
+        let mut by_point = vec![0.0; grads.len()];
+        for (q, at_point) in grads.chunks_exact(n_basis * dim).enumerate() {
+            for (aj, &g) in at_point.iter().enumerate() {
+                by_point[aj * n_points + q] = g;
+            }
+        }
+        PointGradients { dim, n_basis, n_points, grads: by_point }
+    }
+
+    pub fn n_points(&self) -> usize {
+        self.n_points
+    }
+
+    /// ∂N_a/∂ξ_j at every point.
+    #[inline(always)]
+    pub fn of(&self, a: usize, j: usize) -> &[f64] {
+        &self.grads[(a * self.dim + j) * self.n_points..][..self.n_points]
+    }
+
+    /// ∂x/∂ξ at every point of the element with node coordinates `xe`
+    /// (`D` per node) into `out[(i * D + j) * n_points + q]` = Σ_a x_a,i
+    /// ∂N_a/∂ξ_j: [`POINT_CHUNK`] points at a time, the D sums of a
+    /// direction j held in registers over the nodes. Each sum runs over a
+    /// in increasing order from zero, as [`jacobian`] takes it, so the
+    /// entries are bitwise those of [`jacobian`] at each point.
+    #[inline(always)]
+    pub fn jacobians_into<const D: usize>(&self, xe: &[f64], out: &mut Vec<f64>) {
+        const L: usize = POINT_CHUNK;
+        let (nq, n) = (self.n_points, self.n_basis);
+        out.clear();
+        out.resize(D * D * nq, 0.0);
+        let full = nq - nq % L;
+        for j in 0..D {
+            for q0 in (0..full).step_by(L) {
+                let mut acc = [[0.0; L]; D];
+                for (a, xa) in xe[..n * D].chunks_exact(D).enumerate() {
+                    let g = &self.grads[(a * D + j) * nq + q0..][..L];
+                    for (acc, &x) in acc.iter_mut().zip(xa) {
+                        for l in 0..L {
+                            acc[l] += x * g[l];
+                        }
+                    }
+                }
+                for (i, acc) in acc.iter().enumerate() {
+                    out[(i * D + j) * nq + q0..][..L].copy_from_slice(acc);
+                }
+            }
+            for q in full..nq {
+                for i in 0..D {
+                    let mut v = 0.0;
+                    for a in 0..n {
+                        v += xe[a * D + i] * self.grads[(a * D + j) * nq + q];
+                    }
+                    out[(i * D + j) * nq + q] = v;
+                }
+            }
+        }
     }
 }
 

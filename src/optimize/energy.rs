@@ -18,7 +18,7 @@
 //! ideal one, so an element that stays straight has μ = 1 everywhere.
 
 use crate::linalg::{self, Mat3};
-use crate::mapping;
+use crate::mapping::{self, PointGradients};
 
 /// Weight γ of the size term.
 pub const SIZE_WEIGHT: f64 = 0.5;
@@ -157,23 +157,15 @@ pub struct SampleRule {
     pub dim: usize,
     pub n_basis: usize,
     pub weights: Vec<f64>,
-    /// `ref_grads[(a * dim + k) * n_points + q]` = ∂N_a/∂ξ_k at point q: the
-    /// points innermost, so that the loops over them run in SIMD lanes.
-    ref_grads: Vec<f64>,
+    /// ∂N_a/∂ξ_k at the points, the points innermost.
+    grads: PointGradients,
 }
 
 impl SampleRule {
     /// The rule of `weights` with the reference gradients `grads`, laid out
     /// as [`crate::reference::Tabulation::grads`] (`(q * n_basis + a) * dim + k`).
     pub fn new(dim: usize, n_basis: usize, weights: Vec<f64>, grads: &[f64]) -> SampleRule {
-        let nq = weights.len();
-        let mut ref_grads = vec![0.0; grads.len()];
-        for (q, at_point) in grads.chunks_exact(n_basis * dim).enumerate() {
-            for (ak, &g) in at_point.iter().enumerate() {
-                ref_grads[ak * nq + q] = g;
-            }
-        }
-        SampleRule { dim, n_basis, weights, ref_grads }
+        SampleRule { dim, n_basis, weights, grads: PointGradients::new(dim, n_basis, grads) }
     }
 
     pub fn n_points(&self) -> usize {
@@ -198,13 +190,13 @@ impl SampleRule {
     /// F at point q of an element with node coordinates `xe`.
     #[cfg(test)]
     pub fn deformation(&self, e: &ElementSamples, xe: &[f64], q: usize) -> Mat3 {
-        let (dim, nq) = (self.dim, self.n_points());
+        let dim = self.dim;
         let mut f = [[0.0; 3]; 3];
         for a in 0..self.n_basis {
             for i in 0..dim {
                 for k in 0..dim {
                     for j in 0..dim {
-                        f[i][k] += xe[a * dim + i] * self.ref_grads[(a * dim + j) * nq + q] * e.w_inv[j][k];
+                        f[i][k] += xe[a * dim + i] * self.grads.of(a, j)[q] * e.w_inv[j][k];
                     }
                 }
             }
@@ -212,45 +204,7 @@ impl SampleRule {
         f
     }
 
-    /// Σ_a x_a,i ∂N_a/∂ξ_j at every sample point into `fq[(i * D + j) * n_points + q]`.
-    ///
-    /// [`LANES`] points at a time, the D sums of a direction j held in
-    /// registers over the nodes (each sum over a in increasing a, as the
-    /// remaining points take them one by one).
-    #[inline(always)]
-    fn reference_deformations_into<const D: usize>(&self, xe: &[f64], fq: &mut Vec<f64>) {
-        let (nq, n) = (self.n_points(), self.n_basis);
-        fq.clear();
-        fq.resize(D * D * nq, 0.0);
-        let full = nq - nq % LANES;
-        for j in 0..D {
-            for q0 in (0..full).step_by(LANES) {
-                let mut acc = [[0.0; LANES]; D];
-                for (a, xa) in xe[..n * D].chunks_exact(D).enumerate() {
-                    let g = &self.ref_grads[(a * D + j) * nq + q0..][..LANES];
-                    for (acc, &x) in acc.iter_mut().zip(xa) {
-                        for l in 0..LANES {
-                            acc[l] += x * g[l];
-                        }
-                    }
-                }
-                for (i, acc) in acc.iter().enumerate() {
-                    fq[(i * D + j) * nq + q0..][..LANES].copy_from_slice(acc);
-                }
-            }
-            for q in full..nq {
-                for i in 0..D {
-                    let mut v = 0.0;
-                    for a in 0..n {
-                        v += xe[a * D + i] * self.ref_grads[(a * D + j) * nq + q];
-                    }
-                    fq[(i * D + j) * nq + q] = v;
-                }
-            }
-        }
-    }
-
-    /// F = F_ref W⁻¹ at point q, F_ref out of [`Self::reference_deformations_into`].
+    /// F = F_ref W⁻¹ at point q, F_ref out of [`PointGradients::jacobians_into`].
     #[inline(always)]
     fn point<const D: usize>(fq: &[f64], nq: usize, q: usize, w_inv: &Mat3) -> Mat3 {
         let mut f = [[0.0; 3]; 3];
@@ -275,7 +229,7 @@ impl SampleRule {
     fn min_det_in<const D: usize>(&self, e: &ElementSamples, xe: &[f64]) -> f64 {
         let nq = self.n_points();
         PER_POINT.with_borrow_mut(|fq| {
-            self.reference_deformations_into::<D>(xe, fq);
+            self.grads.jacobians_into::<D>(xe, fq);
             (0..nq).map(|q| linalg::det(D, &Self::point::<D>(fq, nq, q, &e.w_inv))).fold(f64::INFINITY, f64::min)
         })
     }
@@ -313,7 +267,7 @@ impl SampleRule {
         fq: &mut Vec<f64>,
     ) -> Option<f64> {
         let (nq, w_inv) = (self.n_points(), &e.w_inv);
-        self.reference_deformations_into::<D>(xe, fq);
+        self.grads.jacobians_into::<D>(xe, fq);
         let mut total = 0.0;
         for q0 in (0..nq).step_by(L) {
             let live = L.min(nq - q0);
@@ -351,7 +305,7 @@ impl SampleRule {
             let mut lanes = [[0.0f64; LANES]; D];
             let mut tail = [0.0; D];
             for j in 0..D {
-                let g = &self.ref_grads[(a * D + j) * nq..][..nq];
+                let g = self.grads.of(a, j);
                 let gc = g.chunks_exact(LANES);
                 for i in 0..D {
                     let pw = &fq[(i * D + j) * nq..][..nq];

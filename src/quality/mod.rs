@@ -98,27 +98,57 @@ pub struct MeshQuality {
 /// element through the curved vertices), with Q4 and Q5 when a unit `fibre`
 /// N is given.
 pub fn element_quality(cache: &ElementCache, xe: &[f64], xs: &[f64], fibre: Option<&[f64; 3]>) -> ElementQuality {
-    let dim = cache.dim;
-    let xv: Vec<[f64; 3]> = (0..=dim)
-        .map(|a| {
-            let mut v = [0.0; 3];
-            v[..dim].copy_from_slice(&xs[a * dim..(a + 1) * dim]);
-            v
-        })
-        .collect();
-    let (jx_inv, _) = linalg::inverse(dim, &mapping::affine_jacobian(dim, &xv));
+    JACOBIANS.with_borrow_mut(|jq| {
+        linalg::with_avx2(
+            #[inline(always)]
+            || match cache.dim {
+                2 => element_quality_in::<2>(cache, xe, xs, fibre, jq),
+                _ => element_quality_in::<3>(cache, xe, xs, fibre, jq),
+            },
+        )
+    })
+}
+
+thread_local! {
+    /// ∂x/∂ξ at every sample point of one element ([`mapping::PointGradients::jacobians_into`]).
+    static JACOBIANS: std::cell::RefCell<Vec<f64>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// [`element_quality`] in dimension `D`: ∂x/∂ξ at every sample point first
+/// (sums over the nodes in SIMD lanes over the points), then the invariants
+/// point by point.
+#[inline(always)]
+fn element_quality_in<const D: usize>(
+    cache: &ElementCache,
+    xe: &[f64],
+    xs: &[f64],
+    fibre: Option<&[f64; 3]>,
+    jq: &mut Vec<f64>,
+) -> ElementQuality {
+    let mut xv = [[0.0; 3]; 4];
+    for (a, v) in xv.iter_mut().enumerate().take(D + 1) {
+        v[..D].copy_from_slice(&xs[a * D..(a + 1) * D]);
+    }
+    let (jx_inv, _) = linalg::inverse(D, &mapping::affine_jacobian(D, &xv[..=D]));
+    let nq = cache.n_points();
+    cache.by_point.jacobians_into::<D>(xe, jq);
     let mut ext = Extremes::new();
-    for q in 0..cache.n_points() {
-        let dxdxi = mapping::jacobian(dim, xe, cache.grads_at(q));
-        let f = linalg::matmul(dim, &dxdxi, &jx_inv);
-        let (i1, i2) = strain_invariants(dim, &f);
+    for q in 0..nq {
+        let mut dxdxi = [[0.0; 3]; 3];
+        for (i, row) in dxdxi.iter_mut().enumerate().take(D) {
+            for (j, v) in row.iter_mut().enumerate().take(D) {
+                *v = jq[(i * D + j) * nq + q];
+            }
+        }
+        let f = linalg::matmul(D, &dxdxi, &jx_inv);
+        let (i1, i2) = strain_invariants(D, &f);
         // Q3 from det ∂x/∂ξ itself: the scaled Jacobian is a ratio, so the
         // affine factor of X cancels, and it must not set the sign: when X is
         // taken through the curved vertices, an interior vertex moved by the
         // curving (one that a removed boundary cap added) can leave that
         // straight tet inverted under an element that is valid everywhere.
-        let j = linalg::det(dim, &dxdxi);
-        ext.add(i1, i2, j, fibre.map(|n| fibre_invariants(dim, &f, n)));
+        let j = linalg::det(D, &dxdxi);
+        ext.add(i1, i2, j, fibre.map(|n| fibre_invariants(D, &f, n)));
     }
     ext.quality(fibre.is_some())
 }
@@ -399,6 +429,65 @@ pub fn summarize(q: &[ElementQuality]) -> MeshQuality {
 mod tests {
     use super::*;
     use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing, Simplex};
+
+    /// [`element_quality`] as it was computed point by point, ∂x/∂ξ from
+    /// [`mapping::jacobian`] at each point.
+    fn quality_point_by_point(
+        cache: &ElementCache,
+        xe: &[f64],
+        xs: &[f64],
+        fibre: Option<&[f64; 3]>,
+    ) -> ElementQuality {
+        let dim = cache.dim;
+        let xv: Vec<[f64; 3]> = (0..=dim)
+            .map(|a| {
+                let mut v = [0.0; 3];
+                v[..dim].copy_from_slice(&xs[a * dim..(a + 1) * dim]);
+                v
+            })
+            .collect();
+        let (jx_inv, _) = linalg::inverse(dim, &mapping::affine_jacobian(dim, &xv));
+        let mut ext = Extremes::new();
+        for q in 0..cache.n_points() {
+            let dxdxi = mapping::jacobian(dim, xe, cache.grads_at(q));
+            let f = linalg::matmul(dim, &dxdxi, &jx_inv);
+            let (i1, i2) = strain_invariants(dim, &f);
+            ext.add(i1, i2, linalg::det(dim, &dxdxi), fibre.map(|n| fibre_invariants(dim, &f, n)));
+        }
+        ext.quality(fibre.is_some())
+    }
+
+    #[test]
+    fn the_jacobians_summed_in_lanes_give_bitwise_the_quality_of_the_point_by_point_ones() {
+        let bits = |q: ElementQuality| [q.q1, q.q2, q.q3, q.q4, q.q5].map(f64::to_bits);
+        let mut seed = 0x853c_49e6_748f_ea9bu64;
+        let mut next = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for simplex in [Simplex::Tri, Simplex::Tet] {
+            // Sample points 9 + 3 .. 343 + 286: every remainder of the chunks of 8 and more.
+            for p in 1..=5 {
+                let nodes = NodeSet::new(simplex, p, NodeSpacing::Optimal);
+                let cache = sampling_cache(&LagrangeBasis::new(&nodes));
+                let dim = simplex.dim();
+                let xs: Vec<f64> = nodes.coords.iter().flat_map(|c| c[..dim].to_vec()).collect();
+                // Mild, strong (inverted somewhere) and non-finite perturbations.
+                for amplitude in [0.05, 0.8, f64::NAN] {
+                    let xe: Vec<f64> = xs.iter().map(|x| x + amplitude * next()).collect();
+                    for fibre in [None, Some(&[0.6, 0.0, 0.8])] {
+                        let (fast, slow) =
+                            (element_quality(&cache, &xe, &xs, fibre), quality_point_by_point(&cache, &xe, &xs, fibre));
+                        assert_eq!(
+                            bits(fast),
+                            bits(slow),
+                            "{simplex:?} p={p} amplitude {amplitude}: {fast:?} vs {slow:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
 
     fn p2_triangle(delta: f64) -> (ElementCache, Vec<f64>) {
         let nodes = NodeSet::new(Simplex::Tri, 2, NodeSpacing::Optimal);
