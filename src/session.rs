@@ -249,6 +249,12 @@ impl Session {
     /// nothing changes.
     fn reset(&mut self, input: LinearMesh, opts: CurveOptions) -> Result<()> {
         let prepared = prepare(&input, &opts, &self.straight_tags)?;
+        self.reset_to(input, opts, prepared);
+        Ok(())
+    }
+
+    /// [`Session::reset`] with the mesh already prepared for `input` and `opts`.
+    fn reset_to(&mut self, input: LinearMesh, opts: CurveOptions, prepared: Prepared) {
         let (mesh, cq, q) = straight(&prepared);
         self.input = input;
         self.prepared = prepared;
@@ -260,7 +266,6 @@ impl Session {
         if let Some(p) = &mut self.partition {
             p.nodes = None;
         }
-        Ok(())
     }
 
     /// Tag boundary facets (`dim` vertices each). Replaces earlier tags.
@@ -320,7 +325,10 @@ impl Session {
     pub fn set_order(&mut self, order: usize, spacing: NodeSpacing) -> Result<()> {
         let opts = CurveOptions { order, spacing, ..self.opts.clone() };
         validate_options(&opts)?;
-        self.reset(self.input.clone(), opts)
+        // Same mesh, tags and caps: only the elevation changes.
+        let prepared = self.prepared.at_order(&opts)?;
+        self.reset_to(self.input.clone(), opts, prepared);
+        Ok(())
     }
 
     /// Whether boundary caps are removed before curving (default true; see
@@ -501,7 +509,13 @@ impl Session {
         let same_mesh = opts.order == self.opts.order
             && opts.spacing == self.opts.spacing
             && opts.remove_caps == self.opts.remove_caps;
-        let fresh = if same_mesh { None } else { Some(prepare(&self.input, &opts, &self.straight_tags)?) };
+        let fresh = if same_mesh {
+            None
+        } else if opts.remove_caps == self.opts.remove_caps {
+            Some(self.prepared.at_order(&opts)?)
+        } else {
+            Some(prepare(&self.input, &opts, &self.straight_tags)?)
+        };
         let saved_opts = std::mem::replace(&mut self.opts, opts);
         let saved_prepared = fresh.map(|p| std::mem::replace(&mut self.prepared, p));
         let result = self.run(increments);
@@ -539,12 +553,13 @@ impl Session {
     }
 }
 
-/// The mesh to curve, prepared: `input` with the straight tags dropped
-/// ([`Prepared::new`]).
+/// The mesh to curve, prepared: `input` (validated and oriented) with the
+/// straight tags dropped ([`Prepared::from_oriented`]).
 fn prepare(input: &LinearMesh, opts: &CurveOptions, straight_tags: &[(usize, i32)]) -> Result<Prepared> {
     let mut curved = input.clone();
     curved.retain_tags(|d, t| !straight_tags.contains(&(d, t)));
-    Prepared::new(&curved, opts)
+    // `input` was validated and oriented when it was given; dropping tags keeps it so.
+    Prepared::from_oriented(curved, 0, opts)
 }
 
 /// The straight-sided mesh of `prepared`, whose quality is exactly 1 (affine elements).

@@ -35,12 +35,41 @@ impl Prepared {
     /// `opts.remove_caps`, and elevate it to `opts.order` with
     /// `opts.spacing`. Fails on a malformed mesh or options.
     pub fn new(linear: &LinearMesh, opts: &CurveOptions) -> Result<Prepared> {
-        validate_options(opts)?;
         let (oriented, reoriented) = validate_and_orient(linear)?;
+        Prepared::from_oriented(oriented, reoriented, opts)
+    }
+
+    /// [`Prepared::new`] of a mesh that [`validate_and_orient`] has already
+    /// passed and oriented (`reoriented`: the cells it flipped), without
+    /// checking it again.
+    pub fn from_oriented(oriented: LinearMesh, reoriented: usize, opts: &CurveOptions) -> Result<Prepared> {
+        validate_options(opts)?;
         let n_input_cells = oriented.n_cells();
         let (linear, input_cell) =
             if opts.remove_caps { remove_boundary_caps(&oriented) } else { (oriented, (0..n_input_cells).collect()) };
         let topo = Topology::new(&linear)?;
+        Prepared::elevated(linear, input_cell, n_input_cells, reoriented, topo, opts)
+    }
+
+    /// This mesh at the order and node spacing of `opts` (the same cap
+    /// removal): elevated again, its orientation, caps and topology kept.
+    pub fn at_order(&self, opts: &CurveOptions) -> Result<Prepared> {
+        validate_options(opts)?;
+        if opts.remove_caps != self.remove_caps {
+            return Err(Error::InvalidInput("at_order keeps the cap removal; prepare the mesh anew".into()));
+        }
+        let (linear, topo) = (self.linear.clone(), self.topo.clone());
+        Prepared::elevated(linear, self.input_cell.clone(), self.n_input_cells, self.reoriented, topo, opts)
+    }
+
+    fn elevated(
+        linear: LinearMesh,
+        input_cell: Vec<usize>,
+        n_input_cells: usize,
+        reoriented: usize,
+        topo: Topology,
+        opts: &CurveOptions,
+    ) -> Result<Prepared> {
         let nodes = NodeSet::new(topo.simplex, opts.order, opts.spacing);
         let straight = HighOrderMesh::elevate(&linear, &topo, &nodes, opts.spacing)?;
         Ok(Prepared {
@@ -100,5 +129,36 @@ impl Prepared {
             )));
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_new_order_elevates_the_prepared_mesh_again_and_keeps_the_rest() {
+        // A flat boundary cap on two tets: removed or kept as asked.
+        let m = crate::mesh::repair::caps::tests::ridge();
+        for remove_caps in [true, false] {
+            let at1 = Prepared::new(&m, &CurveOptions { order: 1, remove_caps, ..Default::default() }).unwrap();
+            assert_eq!(at1.linear().n_cells(), if remove_caps { 2 } else { 3 });
+            for (order, spacing) in [(3, NodeSpacing::Optimal), (2, NodeSpacing::Equispaced)] {
+                let opts = CurveOptions { order, spacing, remove_caps, ..Default::default() };
+                let (again, fresh) = (at1.at_order(&opts).unwrap(), Prepared::new(&m, &opts).unwrap());
+                again.check_matches(&opts).unwrap();
+                assert_eq!(again.linear(), fresh.linear());
+                assert_eq!(again.input_cell(), fresh.input_cell());
+                let (a, b) = (again.straight_mesh(), fresh.straight_mesh());
+                assert_eq!(
+                    (a.order, a.spacing, &a.cells, &a.constraint),
+                    (b.order, b.spacing, &b.cells, &b.constraint)
+                );
+                assert!(a.coords.iter().zip(&b.coords).all(|(x, y)| x.to_bits() == y.to_bits()));
+            }
+            let other = CurveOptions { order: 2, remove_caps: !remove_caps, ..Default::default() };
+            assert!(at1.at_order(&other).is_err());
+            assert!(at1.at_order(&CurveOptions { order: 0, remove_caps, ..Default::default() }).is_err());
+        }
     }
 }

@@ -154,7 +154,7 @@ pub fn sweep(mesh: &LinearMesh, accept: impl Fn(usize, f64) -> bool) -> Option<(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     fn volume(m: &LinearMesh) -> f64 {
@@ -169,7 +169,7 @@ mod tests {
 
     /// A flat cap (a, b, c, d) under a ridge ab, on two tets sharing cde.
     /// Top faces tag 1, the sides towards c tag 2, towards d tag 3.
-    fn ridge() -> LinearMesh {
+    pub(crate) fn ridge() -> LinearMesh {
         let (a, b, c, d, e) = (0, 1, 2, 3, 4);
         LinearMesh {
             dim: 3,
