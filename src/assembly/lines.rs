@@ -12,7 +12,7 @@
 //! stretched belong to no line, so a mesh without stretched cells is
 //! smoothed exactly as before.
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap as HashMap;
 
 use super::DofMap;
 use crate::mesh::HighOrderMesh;
@@ -76,7 +76,7 @@ pub fn cell_lines(mesh: &HighOrderMesh) -> Vec<Vec<usize>> {
         k[..dim].sort_unstable();
         k
     };
-    let mut facets: HashMap<[usize; 3], Vec<(usize, usize)>> = HashMap::new();
+    let mut facets: HashMap<[usize; 3], Vec<(usize, usize)>> = HashMap::default();
     for (c, s) in cells.iter().enumerate() {
         for &f in s.iter().flat_map(|(f, _)| f) {
             facets.entry(key(c, f)).or_default().push((c, f));

@@ -13,7 +13,7 @@
 //! neighbouring cells agree. It is free if the entity it lies on carries free
 //! order-p nodes (interior entities), else fixed.
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap as HashMap;
 
 use super::lines::line_groups;
 use super::DofMap;
@@ -60,7 +60,7 @@ pub fn coarse_mesh(mesh: &HighOrderMesh, q: usize) -> HighOrderMesh {
         .iter()
         .map(|m| fine.multi.iter().position(|f| support(f) == support(m)).expect("q < p: every entity has nodes"))
         .collect();
-    let mut ids: HashMap<[(usize, usize); 4], usize> = HashMap::new();
+    let mut ids: HashMap<[(usize, usize); 4], usize> = HashMap::default();
     let mut cells = Vec::with_capacity(mesh.n_cells() * npq);
     let mut coords = mesh.coords[..mesh.n_vertices * dim].to_vec();
     let mut constraint: Vec<NodeConstraint> = mesh.constraint[..mesh.n_vertices].to_vec();

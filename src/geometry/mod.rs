@@ -58,7 +58,7 @@ pub fn project_samples(
 /// projections of the repair.
 #[derive(Debug, Default)]
 pub struct SampleProjections {
-    known: std::collections::HashMap<(usize, i32, [u64; 3]), [f64; 3]>,
+    known: rustc_hash::FxHashMap<(usize, i32, [u64; 3]), [f64; 3]>,
 }
 
 impl SampleProjections {
@@ -72,7 +72,7 @@ impl SampleProjections {
         let key = |(edim, tag): (usize, i32), x: &[f64; 3]| (edim, tag, x.map(f64::to_bits));
         // The new points of each entity, once each, in the order they come.
         let mut groups: std::collections::BTreeMap<(usize, i32), Vec<[f64; 3]>> = Default::default();
-        let mut queued = std::collections::HashSet::new();
+        let mut queued = rustc_hash::FxHashSet::default();
         for (x, &e) in samples.points.iter().zip(&samples.entities) {
             let k = key(e, x);
             if !self.known.contains_key(&k) && queued.insert(k) {

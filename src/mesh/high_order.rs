@@ -9,8 +9,8 @@
 //! each cell. A node's place therefore depends only on the entity it lies on,
 //! never on the cell that visits it.
 
+use rustc_hash::FxHashMap as HashMap;
 use std::borrow::Cow;
-use std::collections::HashMap;
 
 use super::topology::Topology;
 use super::LinearMesh;
@@ -361,7 +361,7 @@ fn facet_tags(
     }
     let mut facet_tag: Vec<Option<i32>> = vec![None; n_facets];
     let mut given = vec![false; n_facets];
-    let face_lookup = if dim == 3 { topo.face_lookup() } else { HashMap::new() };
+    let face_lookup = if dim == 3 { topo.face_lookup() } else { HashMap::default() };
     for (k, f) in linear.facets.chunks_exact(dim).enumerate() {
         let id = if dim == 2 {
             edge_lookup.get(&[f[0].min(f[1]), f[0].max(f[1])]).copied()

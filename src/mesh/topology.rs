@@ -4,7 +4,7 @@
 //! Edges and faces are identified by their sorted global vertex tuples; the
 //! numbering is deterministic (first appearance while scanning the cells).
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap as HashMap;
 use std::fmt::Debug;
 use std::hash::Hash;
 
@@ -56,7 +56,7 @@ pub fn validate_and_orient(mesh: &LinearMesh) -> Result<(LinearMesh, usize)> {
     let npc = dim + 1;
     let mut out = mesh.clone();
     let mut reoriented = 0;
-    let mut seen: HashMap<[usize; 4], usize> = HashMap::with_capacity(mesh.n_cells());
+    let mut seen: HashMap<[usize; 4], usize> = HashMap::with_capacity_and_hasher(mesh.n_cells(), Default::default());
     for (c, cell) in out.cells.chunks_exact_mut(npc).enumerate() {
         if orient_cell(mesh, c, cell, &mut seen)? {
             reoriented += 1;
@@ -170,7 +170,7 @@ impl Topology {
         let npc = mesh.dim + 1;
         let nc = mesh.n_cells();
         let local_edges = simplex.edges();
-        let mut edge_id: HashMap<[usize; 2], usize> = HashMap::with_capacity(nc * 2);
+        let mut edge_id: HashMap<[usize; 2], usize> = HashMap::with_capacity_and_hasher(nc * 2, Default::default());
         let mut edges = Vec::new();
         let mut cell_edges = Vec::with_capacity(nc * local_edges.len());
         let mut edge_cells: Vec<u32> = Vec::new();
@@ -184,7 +184,7 @@ impl Topology {
         let mut faces = Vec::new();
         let mut cell_faces = Vec::new();
         let boundary_facets: Vec<usize> = if simplex == Simplex::Tet {
-            let mut face_id: HashMap<[usize; 3], usize> = HashMap::with_capacity(nc * 2);
+            let mut face_id: HashMap<[usize; 3], usize> = HashMap::with_capacity_and_hasher(nc * 2, Default::default());
             let mut face_cells: Vec<u32> = Vec::new();
             cell_faces.reserve(nc * 4);
             for cell in mesh.cells.chunks_exact(npc) {

@@ -16,7 +16,7 @@
 //! entities, the caller projects them (one batched call per entity, see
 //! [`crate::geometry::facet_bulges`]) and [`facet_bulges`] measures.
 
-use std::collections::{HashMap, HashSet};
+use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 
 use super::geom::{boundary_facets, cross, dot, facet_key, facet_of, norm, sub, FacetKey};
 use crate::mesh::LinearMesh;
@@ -55,7 +55,7 @@ pub fn bulge_samples(mesh: &LinearMesh) -> BulgeSamples {
     // Tags of the boundary faces (None: untagged) at each boundary edge.
     let tagged: HashMap<FacetKey, i32> =
         mesh.facets.chunks_exact(3).zip(&mesh.facet_tags).map(|(f, &t)| (facet_key(f), t)).collect();
-    let mut edge_tags: HashMap<[usize; 2], Option<Option<i32>>> = HashMap::new();
+    let mut edge_tags: HashMap<[usize; 2], Option<Option<i32>>> = HashMap::default();
     for f in boundary_facets(mesh) {
         let t = tagged.get(&f).copied();
         for e in [[f[0], f[1]], [f[1], f[2]], [f[0], f[2]]] {
@@ -113,7 +113,7 @@ pub fn facet_bulges(mesh: &LinearMesh, samples: &BulgeSamples, projected: &[[f64
     let index: HashMap<FacetKey, usize> =
         mesh.facets.chunks_exact(d).enumerate().map(|(k, f)| (facet_key(f), k)).collect();
     let mut normal: Vec<Option<[f64; 3]>> = vec![None; nf];
-    let mut seen = HashSet::new();
+    let mut seen = HashSet::default();
     for c in mesh.cells.chunks_exact(d + 1) {
         for k in 0..=d {
             if let Some(&i) = index.get(&facet_of(c, k)) {

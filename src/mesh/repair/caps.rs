@@ -18,7 +18,7 @@
 //! centroid instead was tried and is worse (its sub-cells are as flat as the
 //! cap: 239 inverted cells on the same torus). Repeated until no cap is left.
 
-use std::collections::{HashMap, HashSet};
+use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 
 use crate::mesh::LinearMesh;
 
@@ -90,7 +90,7 @@ pub fn sweep(mesh: &LinearMesh, accept: impl Fn(usize, f64) -> bool) -> Option<(
         .collect();
     let mut remove_cell = vec![false; out.n_cells()];
     let mut remove_facet = vec![false; out.facet_tags.len()];
-    let mut touched = HashSet::new();
+    let mut touched = HashSet::default();
     let (mut new_facets, mut new_tags) = (Vec::new(), Vec::new());
     for (ci, cell) in out.cells.chunks_exact(4).enumerate() {
         // Boundary faces as (opposite local vertex, facet index).

@@ -32,7 +32,7 @@
 //!   simplex (√(2/3), √3/2): the height left once the bulge is taken out;
 //! * q_mr − 1 for a surface cell.
 
-use std::collections::{HashMap, HashSet};
+use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 
 use super::geom::{boundary_facets, cross, facet_key, facet_of, norm, orient, sub, FacetKey};
 use crate::mesh::LinearMesh;
@@ -86,7 +86,7 @@ impl Criteria {
     pub fn new(mesh: &LinearMesh, bulge: &[f64]) -> Criteria {
         let d = mesh.dim;
         let mut surfaces: Vec<Vec<(i32, bool)>> = vec![Vec::new(); mesh.n_vertices()];
-        let mut map = HashMap::new();
+        let mut map = HashMap::default();
         for ((f, &tag), &b) in mesh.facets.chunks_exact(d.max(1)).zip(&mesh.facet_tags).zip(bulge) {
             let x: Vec<[f64; 3]> = f.iter().map(|&v| mesh.vertex(v)).collect();
             let concave = b > CONCAVE_BULGE * longest_edge(&x);

@@ -23,7 +23,7 @@
 //! degenerate ([`super::detect::DEGENERATE`]) and every new edge is new to
 //! the mesh.
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap as HashMap;
 
 use super::detect::{Assessment, Criteria};
 use super::geom::{facet_key, facet_of, orient, FacetKey};
@@ -103,8 +103,8 @@ impl<'a> Work<'a> {
             alive: Vec::with_capacity(n),
             assessment: Vec::with_capacity(n),
             origin: Vec::with_capacity(n),
-            facets: HashMap::with_capacity(2 * n),
-            edges: HashMap::new(),
+            facets: HashMap::with_capacity_and_hasher(2 * n, Default::default()),
+            edges: HashMap::default(),
             n_given: n,
         };
         for (c, o) in cells.into_iter().zip(origin) {
@@ -393,7 +393,7 @@ impl<'a> Work<'a> {
             adjacent(i.min(j), i.max(j)) || !self.edges.contains_key(&[ring[i].min(ring[j]), ring[i].max(ring[j])])
         };
         // Quality of the two tets on ring triangle (i, j, k), i < j < k.
-        let mut tri = HashMap::new();
+        let mut tri = HashMap::default();
         let mut tri_q = |i: usize, j: usize, k: usize| -> f64 {
             *tri.entry((i, j, k)).or_insert_with(|| {
                 if !(new_edge_ok(i, j) && new_edge_ok(j, k) && new_edge_ok(i, k)) {

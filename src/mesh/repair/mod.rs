@@ -51,7 +51,7 @@ pub mod surface;
 #[cfg(test)]
 mod tests;
 
-use std::collections::HashSet;
+use rustc_hash::FxHashSet as HashSet;
 
 use crate::mesh::LinearMesh;
 pub use bulge::{bulge_samples, facet_bulges, BulgeSamples};
@@ -172,7 +172,7 @@ pub fn repair_with<E>(
     }
     // Surface edges whose facet folds once curved; a flip that does not
     // lower the squeeze is refused and its round done again without it.
-    let mut refused = HashSet::new();
+    let mut refused = HashSet::default();
     for _ in 0..MAX_ROUNDS {
         let squeeze = surface::squeezes(&cur, &m.samples, &m.projected);
         let Some(round) = surface::flip_round(&cur, &m.bulge, &squeeze, &origin, &refused) else { break };

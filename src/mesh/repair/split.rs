@@ -26,7 +26,7 @@
 //! In 2D the triangle is a cell with two boundary edges at a vertex. The
 //! boundary facets are unchanged and the pieces cover each cell exactly.
 
-use std::collections::{HashMap, HashSet};
+use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 
 use super::detect::Criteria;
 use super::geom::{cross, dot, facet_of, norm, sub};
@@ -59,7 +59,7 @@ fn boundary_edges(mesh: &LinearMesh, crit: &Criteria) -> HashMap<Edge, Vec<[f64;
             })
         })
         .collect();
-    let mut normals: HashMap<Edge, Vec<[f64; 3]>> = HashMap::new();
+    let mut normals: HashMap<Edge, Vec<[f64; 3]>> = HashMap::default();
     for (key, n) in facets {
         let f = &key[..d];
         for i in 0..d {
@@ -107,7 +107,7 @@ fn squeezed_edge(t: [usize; 3], normals: &HashMap<Edge, Vec<[f64; 3]>>) -> Optio
 pub fn squeezed_edges(mesh: &LinearMesh, crit: &Criteria) -> Vec<Edge> {
     let d = mesh.dim;
     let normals = boundary_edges(mesh, crit);
-    let mut out: HashSet<Edge> = HashSet::new();
+    let mut out: HashSet<Edge> = HashSet::default();
     let on_boundary = |v: &usize| crit.is_boundary_vertex(*v);
     for cell in mesh.cells.chunks_exact(d + 1).filter(|c| c.iter().filter(|v| on_boundary(v)).count() >= 3) {
         let triangles: Vec<[usize; 3]> = if d == 2 {
@@ -142,7 +142,7 @@ pub struct Split {
 pub fn split_edges(mesh: &LinearMesh, edges: &[Edge]) -> Split {
     let d = mesh.dim;
     let wanted: HashSet<Edge> = edges.iter().copied().collect();
-    let mut around: HashMap<Edge, Vec<usize>> = HashMap::new();
+    let mut around: HashMap<Edge, Vec<usize>> = HashMap::default();
     for (c, cell) in mesh.cells.chunks_exact(d + 1).enumerate() {
         for i in 0..=d {
             for j in i + 1..=d {

@@ -26,7 +26,7 @@
 //! domain gains or loses the tet (a, b, c, d), which the curved boundary
 //! covers either way.
 
-use std::collections::{HashMap, HashSet};
+use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 
 use super::bulge::BulgeSamples;
 use super::detect::Criteria;
@@ -47,7 +47,7 @@ pub struct Squeeze {
 /// The squeeze (module docs) of every tagged facet with a sample on its
 /// surface, by facet key, from the projections of the samples of `mesh`.
 pub fn squeezes(mesh: &LinearMesh, samples: &BulgeSamples, projected: &[[f64; 3]]) -> HashMap<FacetKey, Squeeze> {
-    let mut out: HashMap<FacetKey, Squeeze> = HashMap::new();
+    let mut out: HashMap<FacetKey, Squeeze> = HashMap::default();
     if mesh.dim != 3 {
         return out;
     }
@@ -125,7 +125,7 @@ pub fn flip_round(
         return None;
     }
     // Boundary facets at each edge, with their tags.
-    let mut at_edge: HashMap<[usize; 2], Vec<(usize, i32)>> = HashMap::new();
+    let mut at_edge: HashMap<[usize; 2], Vec<(usize, i32)>> = HashMap::default();
     for (f, &tag) in mesh.facets.chunks_exact(3).zip(&mesh.facet_tags) {
         for (i, j, o) in [(0, 1, 2), (1, 2, 0), (0, 2, 1)] {
             at_edge.entry([f[i].min(f[j]), f[i].max(f[j])]).or_default().push((f[o], tag));
@@ -140,8 +140,8 @@ pub fn flip_round(
     let crit = Criteria::new(mesh, bulge);
     let mut w = Work::new(mesh, &crit, origin.to_vec());
     let (mut facets, mut tags) = (mesh.facets.clone(), mesh.facet_tags.clone());
-    let mut removed_facets = HashSet::new();
-    let mut touched = HashSet::new();
+    let mut removed_facets = HashSet::default();
+    let mut touched = HashSet::default();
     let mut flips = Vec::new();
     for (value, [a, b]) in worst {
         let Some(&[(c, tc), (d, td)]) = at_edge.get(&[a, b]).map(Vec::as_slice) else { continue };
