@@ -184,6 +184,18 @@ pub fn affine_jacobian(dim: usize, xv: &[[f64; 3]]) -> Mat3 {
     j
 }
 
+/// The inverse and the determinant of [`affine_jacobian`] for the straight
+/// simplex whose vertices are the first dim + 1 nodes of `xs` (`dim`
+/// coordinates each); the inverse is meaningless where the determinant is
+/// zero.
+pub fn straight_inverse(dim: usize, xs: &[f64]) -> (Mat3, f64) {
+    let mut xv = [[0.0; 3]; 4];
+    for (a, v) in xv.iter_mut().enumerate().take(dim + 1) {
+        v[..dim].copy_from_slice(&xs[a * dim..(a + 1) * dim]);
+    }
+    crate::linalg::inverse(dim, &affine_jacobian(dim, &xv[..=dim]))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

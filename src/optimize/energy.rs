@@ -175,15 +175,7 @@ impl SampleRule {
     /// The straight element whose vertices are the first dim + 1 nodes of
     /// `xs`; None if it is degenerate.
     pub fn element(&self, xs: &[f64]) -> Option<ElementSamples> {
-        let dim = self.dim;
-        let xv: Vec<[f64; 3]> = (0..=dim)
-            .map(|a| {
-                let mut v = [0.0; 3];
-                v[..dim].copy_from_slice(&xs[a * dim..(a + 1) * dim]);
-                v
-            })
-            .collect();
-        let (w_inv, det) = linalg::inverse(dim, &mapping::affine_jacobian(dim, &xv));
+        let (w_inv, det) = mapping::straight_inverse(self.dim, xs);
         (det != 0.0 && det.is_finite()).then_some(ElementSamples { w_inv })
     }
 

@@ -125,11 +125,7 @@ fn element_quality_in<const D: usize>(
     fibre: Option<&[f64; 3]>,
     jq: &mut Vec<f64>,
 ) -> ElementQuality {
-    let mut xv = [[0.0; 3]; 4];
-    for (a, v) in xv.iter_mut().enumerate().take(D + 1) {
-        v[..D].copy_from_slice(&xs[a * D..(a + 1) * D]);
-    }
-    let (jx_inv, _) = linalg::inverse(D, &mapping::affine_jacobian(D, &xv[..=D]));
+    let (jx_inv, _) = mapping::straight_inverse(D, xs);
     let nq = cache.n_points();
     cache.by_point.jacobians_into::<D>(xe, jq);
     let mut ext = Extremes::new();
@@ -439,14 +435,7 @@ mod tests {
         fibre: Option<&[f64; 3]>,
     ) -> ElementQuality {
         let dim = cache.dim;
-        let xv: Vec<[f64; 3]> = (0..=dim)
-            .map(|a| {
-                let mut v = [0.0; 3];
-                v[..dim].copy_from_slice(&xs[a * dim..(a + 1) * dim]);
-                v
-            })
-            .collect();
-        let (jx_inv, _) = linalg::inverse(dim, &mapping::affine_jacobian(dim, &xv));
+        let (jx_inv, _) = mapping::straight_inverse(dim, xs);
         let mut ext = Extremes::new();
         for q in 0..cache.n_points() {
             let dxdxi = mapping::jacobian(dim, xe, cache.grads_at(q));
