@@ -296,11 +296,19 @@ impl Pieces {
                 let inner = (0..nodes.len())
                     .filter(|&a| on(&nodes.multi[a]) && nodes.multi[a][..nv].iter().filter(|&&k| k > 0).count() > 1)
                     .collect();
-                // Lattice points on the piece but its vertices (the nodes
-                // are not lattice points unless equispaced).
+                // Lattice points on the piece but its nodes: the nodes lie
+                // on the entity (the vertices as given, the others placed
+                // or slid onto it), so only the points between them can
+                // stray. Whole lattices of nodes coincide with lattice
+                // points when equispaced (every order 2 mesh: the edge
+                // midpoints), single ones otherwise (the centroid at p = 3).
+                let at_node = |x: &[f64; 3]| {
+                    vertices.iter().chain(&inner).any(|&a| (0..dim).all(|d| (x[d] - nodes.coords[a][d]).abs() < 1e-12))
+                };
                 let points: Vec<[f64; 3]> = (0..lattice.len())
                     .filter(|&i| on(&lattice.multi[i]) && !lattice.multi[i][..nv].contains(&(2 * p)))
                     .map(|i| lattice.coords[i])
+                    .filter(|x| !at_node(x))
                     .collect();
                 let values = basis.tabulate(&points).values;
                 let apart = |x: &[f64; 3]| {
@@ -748,18 +756,30 @@ mod tests {
 
     #[test]
     fn a_tetrahedron_has_four_facets_and_six_edges_sampled_between_their_nodes() {
-        let p = 3;
-        let basis = LagrangeBasis::new(&NodeSet::new(Simplex::Tet, p, NodeSpacing::Optimal));
-        let pieces = Pieces::new(&basis);
-        assert_eq!(pieces.pieces.len(), 10);
-        for piece in &pieces.pieces[..4] {
-            // Facet: 3 (p - 1) edge nodes and (p - 1)(p - 2)/2 face nodes;
-            // lattice 2p on a triangle but its vertices.
-            assert_eq!((piece.edim, piece.inner.len()), (2, 3 * (p - 1) + (p - 1) * (p - 2) / 2));
-            assert_eq!(piece.values.len() / pieces.npc, (2 * p + 1) * (2 * p + 2) / 2 - 3);
-        }
-        for piece in &pieces.pieces[4..] {
-            assert_eq!((piece.edim, piece.inner.len(), piece.values.len() / pieces.npc), (1, p - 1, 2 * p - 1));
+        // (order, spacing, sample points per facet, per edge): the lattice of
+        // order 2p on the piece but the points at its nodes. A triangle
+        // holds (2p + 1)(2p + 2)/2 lattice points, an edge 2p + 1; all the
+        // nodes are lattice points when equispaced (every node at p = 2),
+        // the vertices and the face centroid only at p = 3 otherwise.
+        for (p, spacing, facet, edge) in [
+            (3, NodeSpacing::Optimal, 28 - 3 - 1, 7 - 2),
+            (2, NodeSpacing::Optimal, 15 - 3 - 3, 5 - 2 - 1),
+            (3, NodeSpacing::Equispaced, 28 - 10, 7 - 4),
+        ] {
+            let nodes = NodeSet::new(Simplex::Tet, p, spacing);
+            let basis = LagrangeBasis::new(&nodes);
+            let pieces = Pieces::new(&basis);
+            assert_eq!(pieces.pieces.len(), 10);
+            for (k, piece) in pieces.pieces.iter().enumerate() {
+                // Facet: 3 (p - 1) edge nodes and (p - 1)(p - 2)/2 face nodes.
+                let (edim, inner, count) =
+                    if k < 4 { (2, 3 * (p - 1) + (p - 1) * (p - 2) / 2, facet) } else { (1, p - 1, edge) };
+                assert_eq!((piece.edim, piece.inner.len(), piece.values.len() / pieces.npc), (edim, inner, count));
+                // Each sample point is where no node is: no basis function is 1 there.
+                for values in piece.values.chunks_exact(pieces.npc) {
+                    assert!(values.iter().all(|v| (v - 1.0).abs() > 1e-9), "p = {p}: a sample point at a node");
+                }
+            }
         }
     }
 }
