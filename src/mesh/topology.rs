@@ -13,7 +13,7 @@ use crate::reference::simplex::{Simplex, TET_FACES};
 use crate::{Error, Result};
 
 /// Edges, faces and the boundary of a linear mesh.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Topology {
     pub simplex: Simplex,
     /// Global edges as sorted vertex pairs.
