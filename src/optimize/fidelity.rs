@@ -7,7 +7,8 @@
 //! node on the geometry but moves the interpolant off it between the nodes.
 //! The guard samples each boundary piece of a cell (a facet on a curve or
 //! surface, and in 3D an edge on a curve) at the points of the equispaced
-//! lattice of order 2p on it, and projects them onto the piece's entity. A
+//! lattice of order 2p on it but its nodes (which lie on the entity), and
+//! projects them onto the piece's entity. A
 //! slide is kept only if every piece it moves stays within the larger of
 //! [`FIDELITY_FACTOR`] times its own distance before the polish and the
 //! largest distance of the whole boundary before the polish: the
