@@ -67,7 +67,7 @@ impl Assessment {
 }
 
 /// The per-mesh data of the criteria (module docs).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Criteria {
     dim: usize,
     /// Bulge of each tagged facet.
@@ -106,6 +106,17 @@ impl Criteria {
             }
         }
         Criteria { dim: d, bulge: map, surfaces, boundary, boundary_vertex }
+    }
+
+    /// The criteria of the same mesh after interior edges were split, with
+    /// `n_vertices` vertices now: the facets and the boundary are the same
+    /// (a split edge is interior, so no facet and no boundary face holds
+    /// it), and the new vertices are interior. Equal to [`Criteria::new`] on
+    /// that mesh, without sorting its cells' faces again.
+    pub fn after_split(mut self, n_vertices: usize) -> Criteria {
+        self.surfaces.resize(n_vertices, Vec::new());
+        self.boundary_vertex.resize(n_vertices, false);
+        self
     }
 
     /// Whether facet `f` is on the boundary of the mesh the criteria were made for.

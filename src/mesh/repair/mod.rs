@@ -130,7 +130,7 @@ pub struct Repaired {
 /// first, in their order, then the new cells.
 pub fn repair(mesh: &LinearMesh, bulge: &[f64]) -> Repaired {
     let origin = (0..mesh.n_cells()).map(|c| vec![c]).collect();
-    flip_round(mesh, bulge, origin, mesh).0
+    flip_round(mesh, bulge, &Criteria::new(mesh, bulge), origin, mesh).0
 }
 
 /// The repair (module docs). With `remove_caps`, the bad surface cells that
@@ -152,8 +152,11 @@ pub fn repair_with<E>(
     let mut same: Vec<Option<usize>> = (0..n).map(Some).collect();
     let mut summary = RepairSummary::default();
     let mut m = Measured::of(&cur, &mut measure)?;
+    // The criteria of `cur`, made again whenever it changes but by the
+    // flips and splits, which keep its facets and boundary.
+    let mut crit = Criteria::new(&cur, &m.bulge);
     for round in 0..MAX_ROUNDS {
-        let bad = Criteria::new(&cur, &m.bulge).bad_cells(&cur);
+        let bad = crit.bad_cells(&cur);
         if round == 0 {
             summary.bad_cells = bad.len();
             summary.surface_cells = bad.iter().filter(|(_, a)| a.surface).count();
@@ -169,6 +172,7 @@ pub fn repair_with<E>(
         same = kept.iter().map(|&c| same[c]).collect();
         cur = next;
         m = Measured::of(&cur, &mut measure)?;
+        crit = Criteria::new(&cur, &m.bulge);
     }
     // Surface edges whose facet folds once curved; a flip that does not
     // lower the squeeze is refused and its round done again without it.
@@ -189,9 +193,10 @@ pub fn repair_with<E>(
         origin = round.origin;
         cur = round.mesh;
         m = next;
+        crit = Criteria::new(&cur, &m.bulge);
     }
     let bulge = m.bulge;
-    let (r, o) = flip_round(&cur, &bulge, origin, mesh);
+    let (r, o) = flip_round(&cur, &bulge, &crit, origin, mesh);
     let s = r.summary;
     summary.flips_23 = s.flips_23;
     summary.flips_32 = s.flips_32;
@@ -201,8 +206,9 @@ pub fn repair_with<E>(
     let n_kept = r.mesh.n_cells() - s.cells_added;
     let same: Vec<Option<usize>> =
         (0..r.mesh.n_cells()).map(|i| if i < n_kept { same[r.input_cell[i]] } else { None }).collect();
-    // Flips keep the facets, so the bulges still hold.
-    let split = split::split_squeezed(&r.mesh, &bulge);
+    // Flips keep the facets, so the bulges still hold, and the boundary
+    // (they swap interior faces and edges only): the criteria too.
+    let split = split::split_squeezed_with(&r.mesh, crit);
     summary.edge_splits = split.edges;
     let same: Vec<Option<usize>> =
         split.parent.iter().zip(&split.whole).map(|(&c, &w)| if w { same[c] } else { None }).collect();
@@ -221,10 +227,11 @@ pub fn repair_with<E>(
 /// One round of flips on `mesh`, whose cell c overlaps the cells `origin[c]`
 /// of `base`: the repaired mesh, and the origins of its cells. Its
 /// `input_cell` gives an untouched cell's index in `mesh` and a new cell's in
-/// `base` (the same mesh for [`repair`]).
+/// `base` (the same mesh for [`repair`]). `crit` is made for `mesh` and `bulge`.
 fn flip_round(
     mesh: &LinearMesh,
     bulge: &[f64],
+    crit: &Criteria,
     origin: Vec<Vec<usize>>,
     base: &LinearMesh,
 ) -> (Repaired, Vec<Vec<usize>>) {
@@ -234,7 +241,6 @@ fn flip_round(
         let input_cell = (0..n).collect();
         return (Repaired { mesh: mesh.clone(), input_cell, summary }, origin);
     }
-    let crit = Criteria::new(mesh, bulge);
     let bad = crit.bad_cells(mesh);
     if bad.is_empty() {
         let input_cell = (0..n).collect();

@@ -192,14 +192,20 @@ pub fn split_edges(mesh: &LinearMesh, edges: &[Edge]) -> Split {
 /// round, at most [`MAX_SPLIT_ROUNDS`]; `bulge` as for [`Criteria::new`]
 /// (splits keep the facets).
 pub fn split_squeezed(mesh: &LinearMesh, bulge: &[f64]) -> Split {
+    split_squeezed_with(mesh, Criteria::new(mesh, bulge))
+}
+
+/// [`split_squeezed`] with the criteria `crit` of `mesh` already made.
+pub fn split_squeezed_with(mesh: &LinearMesh, mut crit: Criteria) -> Split {
     let n = mesh.n_cells();
     let mut done = Split { mesh: mesh.clone(), parent: (0..n).collect(), whole: vec![true; n], edges: 0 };
     for _ in 0..MAX_SPLIT_ROUNDS {
-        let edges = squeezed_edges(&done.mesh, &Criteria::new(&done.mesh, bulge));
+        let edges = squeezed_edges(&done.mesh, &crit);
         if edges.is_empty() {
             break;
         }
         let next = split_edges(&done.mesh, &edges);
+        crit = crit.after_split(next.mesh.n_vertices());
         done = Split {
             parent: next.parent.iter().map(|&c| done.parent[c]).collect(),
             whole: next.parent.iter().zip(&next.whole).map(|(&c, &w)| w && done.whole[c]).collect(),
@@ -260,6 +266,8 @@ mod tests {
         assert_eq!((s.parent, s.whole), (vec![2, 0, 0, 1, 1], vec![true, false, false, false, false]));
         assert_eq!((&s.mesh.facets, &s.mesh.facet_tags), (&m.facets, &m.facet_tags));
         assert!((area(&s.mesh) - area(&m)).abs() < 1e-14);
+        let after = Criteria::new(&m, &no_bulge(&m)).after_split(s.mesh.n_vertices());
+        assert_eq!(after, Criteria::new(&s.mesh, &no_bulge(&s.mesh)));
         // Nothing left to split: each half has one boundary edge at O.
         assert!(squeezed_edges(&s.mesh, &Criteria::new(&s.mesh, &no_bulge(&s.mesh))).is_empty());
     }
@@ -302,6 +310,8 @@ mod tests {
             (&[3, 0, 0, 1, 1, 2, 2][..], &[true, false, false, false, false, false, false][..])
         );
         assert_eq!(s.mesh.vertex(7), [0.0, 0.0, 0.5]);
+        // The edge split is interior: the criteria of the split mesh are those of the mesh given.
+        assert_eq!(Criteria::new(&m, &[]).after_split(s.mesh.n_vertices()), Criteria::new(&s.mesh, &[]));
         let volume = |m: &LinearMesh, c: &[usize]| orient(3, &c.iter().map(|&v| m.vertex(v)).collect::<Vec<_>>());
         for (i, c) in s.mesh.cells.chunks(4).enumerate() {
             assert!(volume(&s.mesh, c) > 0.0, "cell {i}");
