@@ -331,7 +331,7 @@ fn classify(linear: &LinearMesh, topo: &Topology, num: &Numbering) -> Result<Vec
         }
     }
     let edge_lookup = topo.edge_lookup();
-    let facet_tag = facet_tags(linear, topo, &edge_lookup)?;
+    let facet_tag = facet_tags(linear, topo, edge_lookup)?;
 
     if dim == 2 {
         for &e in &topo.boundary_facets {
@@ -341,9 +341,9 @@ fn classify(linear: &LinearMesh, topo: &Topology, num: &Numbering) -> Result<Vec
     }
 
     // 3D: faces, then edges of boundary faces, then feature edges (which win).
-    let edge_tagging = constrain_boundary_faces(topo, num, &facet_tag, &edge_lookup, &mut constraint);
+    let edge_tagging = constrain_boundary_faces(topo, num, &facet_tag, edge_lookup, &mut constraint);
     constrain_face_edges(num, &edge_tagging, &mut constraint);
-    constrain_feature_edges(linear, num, &edge_tagging, &edge_lookup, &mut constraint)?;
+    constrain_feature_edges(linear, num, &edge_tagging, edge_lookup, &mut constraint)?;
     Ok(constraint)
 }
 
@@ -361,7 +361,7 @@ fn facet_tags(
     }
     let mut facet_tag: Vec<Option<i32>> = vec![None; n_facets];
     let mut given = vec![false; n_facets];
-    let face_lookup = if dim == 3 { topo.face_lookup() } else { HashMap::default() };
+    let face_lookup = topo.face_lookup();
     for (k, f) in linear.facets.chunks_exact(dim).enumerate() {
         let id = if dim == 2 {
             edge_lookup.get(&[f[0].min(f[1]), f[0].max(f[1])]).copied()

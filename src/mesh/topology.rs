@@ -28,6 +28,10 @@ pub struct Topology {
     pub boundary_facets: Vec<usize>,
     /// Per vertex: does it lie on the boundary?
     pub boundary_vertex: Vec<bool>,
+    /// Global edge id of each sorted edge ([`Topology::edge_lookup`]).
+    edge_ids: HashMap<[usize; 2], usize>,
+    /// 3D only: global face id of each sorted face ([`Topology::face_lookup`]).
+    face_ids: HashMap<[usize; 3], usize>,
 }
 
 /// Signed measure of a simplex times dim! (2× area, 6× volume).
@@ -183,8 +187,9 @@ impl Topology {
         }
         let mut faces = Vec::new();
         let mut cell_faces = Vec::new();
+        let mut face_id: HashMap<[usize; 3], usize> = HashMap::default();
         let boundary_facets: Vec<usize> = if simplex == Simplex::Tet {
-            let mut face_id: HashMap<[usize; 3], usize> = HashMap::with_capacity_and_hasher(nc * 2, Default::default());
+            face_id.reserve(nc * 2);
             let mut face_cells: Vec<u32> = Vec::new();
             cell_faces.reserve(nc * 4);
             for cell in mesh.cells.chunks_exact(npc) {
@@ -205,17 +210,28 @@ impl Topology {
                 boundary_vertex[v] = true;
             }
         }
-        Ok(Topology { simplex, edges, cell_edges, faces, cell_faces, boundary_facets, boundary_vertex })
+        Ok(Topology {
+            simplex,
+            edges,
+            cell_edges,
+            faces,
+            cell_faces,
+            boundary_facets,
+            boundary_vertex,
+            edge_ids: edge_id,
+            face_ids: face_id,
+        })
     }
 
-    /// Map from sorted edge to global edge id.
-    pub fn edge_lookup(&self) -> HashMap<[usize; 2], usize> {
-        self.edges.iter().enumerate().map(|(i, &e)| (e, i)).collect()
+    /// Map from sorted edge to global edge id (kept from the construction:
+    /// each elevation and preparation asks for it).
+    pub fn edge_lookup(&self) -> &HashMap<[usize; 2], usize> {
+        &self.edge_ids
     }
 
-    /// Map from sorted face to global face id (3D).
-    pub fn face_lookup(&self) -> HashMap<[usize; 3], usize> {
-        self.faces.iter().enumerate().map(|(i, &f)| (f, i)).collect()
+    /// Map from sorted face to global face id (3D; empty in 2D).
+    pub fn face_lookup(&self) -> &HashMap<[usize; 3], usize> {
+        &self.face_ids
     }
 }
 
@@ -311,5 +327,15 @@ mod tests {
         assert_eq!(t.edges.len(), 6);
         assert_eq!(t.faces.len(), 4);
         assert_eq!(t.boundary_facets.len(), 4);
+        assert_lookups_index(&t);
+        assert_lookups_index(&Topology::new(&validate_and_orient(&two_triangles()).unwrap().0).unwrap());
+    }
+
+    /// The lookups give each edge and face its index, and nothing else.
+    fn assert_lookups_index(t: &Topology) {
+        assert_eq!(t.edge_lookup().len(), t.edges.len());
+        assert!(t.edges.iter().enumerate().all(|(i, e)| t.edge_lookup()[e] == i));
+        assert_eq!(t.face_lookup().len(), t.faces.len());
+        assert!(t.faces.iter().enumerate().all(|(i, f)| t.face_lookup()[f] == i));
     }
 }
