@@ -486,6 +486,7 @@ impl<'s, 'p> Stage<'s, 'p> {
     /// Write the improved patches' positions into the mesh and measure their cells again.
     fn keep(&mut self, state: &mut MeshState, patches: &[Patch], results: Vec<Option<Vec<f64>>>) {
         let dim = self.ctx.dim;
+        let mut changed = Vec::new();
         for (p, result) in patches.iter().zip(results) {
             let Some(x) = result else { continue };
             for (i, &n) in p.free.iter().chain(&p.sliding).enumerate() {
@@ -494,12 +495,17 @@ impl<'s, 'p> Stage<'s, 'p> {
                 }
                 state.mesh.coords[n * dim..(n + 1) * dim].copy_from_slice(&x[i * dim..(i + 1) * dim]);
             }
-            for &c in &p.cells {
-                let s = state.measure(self.ctx, c);
-                state.cell_quality[c] = s.q;
-                state.certified[c] = s.cert;
-                self.touched[c] = true;
-            }
+            changed.extend_from_slice(&p.cells);
+        }
+        // Each cell measured on its own, so in parallel: the polish's
+        // rounds measured 2,000 cells one after the other on the screw at
+        // p = 2, 10 ms of its 0.1 s.
+        let (ctx, now) = (self.ctx, &*state);
+        let measured: Vec<CellState> = changed.par_iter().map(|&c| now.measure(ctx, c)).collect();
+        for (&c, s) in changed.iter().zip(measured) {
+            state.cell_quality[c] = s.q;
+            state.certified[c] = s.cert;
+            self.touched[c] = true;
         }
     }
 }
