@@ -125,8 +125,15 @@ pub fn nodal_blocks(pattern: &SymmetricCsc, b: usize) -> Result<Vec<Vec<u32>>> {
 impl BlockSym32 {
     /// Symbolic set-up from the lower triangle `pattern` in nodal-block
     /// layout ([`nodal_blocks`]).
+    #[cfg(test)]
     pub fn try_new(pattern: &SymmetricCsc, b: usize) -> Result<BlockSym32> {
-        let upper = nodal_blocks(pattern, b)?;
+        BlockSym32::from_nodal_blocks(&nodal_blocks(pattern, b)?, b)
+    }
+
+    /// Symbolic set-up from the nodal-block layout `upper` of a lower
+    /// triangle pattern ([`nodal_blocks`] of the pattern and `b`), read
+    /// once for this and the double-precision operator.
+    pub fn from_nodal_blocks(upper: &[Vec<u32>], b: usize) -> Result<BlockSym32> {
         let n_blocks = upper.len();
         // Lower block rows: transpose of the strictly upper part.
         let mut lower: Vec<Vec<u32>> = vec![Vec::new(); n_blocks];

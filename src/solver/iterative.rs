@@ -264,11 +264,16 @@ impl IterativeSolver {
             }
         }
         let coarse = if levels.is_empty() { None } else { Some(Hierarchy::try_new(levels, block, params.smoother)?) };
-        // A pattern not in nodal blocks (an external caller's) keeps double precision.
-        let fine32 = if params.single_precision_smoother { BlockSym32::try_new(pattern, block).ok() } else { None };
+        // A pattern not in nodal blocks (an external caller's) keeps double
+        // precision. The layout is read once for both operators.
+        let upper = super::bsr::nodal_blocks(pattern, block).ok();
+        let fine32 = match (&upper, params.single_precision_smoother) {
+            (Some(upper), true) => BlockSym32::from_nodal_blocks(upper, block).ok(),
+            _ => None,
+        };
         Ok(IterativeSolver {
             fine32,
-            op: SymmetricOperator::try_new(pattern, block)?,
+            op: SymmetricOperator::from_nodal_blocks(pattern, block, upper.filter(|_| block > 1))?,
             block,
             coarse,
             params,

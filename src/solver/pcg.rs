@@ -50,6 +50,18 @@ impl SymmetricOperator {
     /// The symbolic transpose of `pattern` (once per pattern), by nodes of
     /// `block` unknowns when the pattern is in that layout.
     pub fn try_new(pattern: &SymmetricCsc, block: usize) -> Result<SymmetricOperator> {
+        let nodal = if block > 1 { super::bsr::nodal_blocks(pattern, block).ok() } else { None };
+        SymmetricOperator::from_nodal_blocks(pattern, block, nodal)
+    }
+
+    /// [`SymmetricOperator::try_new`] with the pattern's nodal-block layout
+    /// already read ([`super::bsr::nodal_blocks`] of `pattern` and `block`),
+    /// or None to take the pattern entry by entry.
+    pub fn from_nodal_blocks(
+        pattern: &SymmetricCsc,
+        block: usize,
+        nodal: Option<Vec<Vec<u32>>>,
+    ) -> Result<SymmetricOperator> {
         let n = pattern.n;
         if n >= u32::MAX as usize || pattern.nnz() >= u32::MAX as usize {
             return Err(Error::solver(
@@ -57,7 +69,6 @@ impl SymmetricOperator {
                 format!("matrix too large for 32-bit indices ({n} rows, {} entries)", pattern.nnz()),
             ));
         }
-        let nodal = if block > 1 { super::bsr::nodal_blocks(pattern, block).ok() } else { None };
         let (b, columns) = match nodal {
             Some(upper) => (block, upper),
             None => (1, (0..n).map(|c| pattern.row_idx[pattern.col_ptr[c]..pattern.col_ptr[c + 1]].to_vec()).collect()),
