@@ -194,30 +194,37 @@ impl DofMap {
                 nb
             })
             .collect();
+        // Column (n, c) holds rows (n, c..dim), then (m, 0..dim) of each
+        // later neighbour m. Allocated to its length (grown by pushing, its
+        // capacity was 1.5 times that on the bench's 3D p = 4 case: 200
+        // bytes per unknown held through the whole solve) and filled node
+        // by node in parallel (serially, 2 ms of a 31,000-unknown p = 2
+        // system, on the critical path).
+        let nodes: Vec<(usize, &[usize])> =
+            columns.iter().enumerate().filter(|(_, nb)| !nb.is_empty()).map(|(n, nb)| (n, nb.as_slice())).collect();
         let mut col_ptr = Vec::with_capacity(self.n_system + 1);
+        let mut node_ptr = Vec::with_capacity(nodes.len() + 1);
         col_ptr.push(0);
-        // Allocated to its length: grown by pushing, its capacity was 1.5
-        // times that on the bench's 3D p = 4 case (200 bytes per unknown
-        // held through the whole solve). Each node's own entry holds the
-        // lower triangle of its block, each neighbour's the whole block.
-        let len: usize =
-            columns.iter().filter(|nb| !nb.is_empty()).map(|nb| (nb.len() - 1) * dim * dim + dim * (dim + 1) / 2).sum();
-        let mut row_idx = Vec::with_capacity(len);
-        for (n, nb) in columns.iter().enumerate() {
-            if nb.is_empty() {
-                continue;
+        node_ptr.push(0);
+        for (_, nb) in &nodes {
+            for c in 0..dim {
+                col_ptr.push(col_ptr[col_ptr.len() - 1] + (nb.len() - 1) * dim + dim - c);
             }
+            node_ptr.push(col_ptr[col_ptr.len() - 1]);
+        }
+        let mut row_idx = vec![0u32; col_ptr[col_ptr.len() - 1]];
+        crate::solver::split_by(&mut row_idx, &node_ptr, 1).into_par_iter().zip(&nodes).for_each(|(out, &(n, nb))| {
+            let mut k = 0;
             for c in 0..dim {
                 for &m in nb {
                     let d0 = if m == n { c } else { 0 };
                     for d in d0..dim {
-                        row_idx.push(self.free[m * dim + d] as u32);
+                        out[k] = self.free[m * dim + d] as u32;
+                        k += 1;
                     }
                 }
-                col_ptr.push(row_idx.len());
             }
-        }
-        debug_assert_eq!(row_idx.len(), len);
+        });
         SymmetricCsc { n: self.n_system, col_ptr, row_idx }
     }
 }
@@ -639,6 +646,39 @@ mod tests {
         }
         assert!(seen.iter().all(|&s| s == 1));
         assert!(colors.len() < 200, "{} colours", colors.len());
+    }
+
+    #[test]
+    fn the_pattern_couples_the_free_dofs_of_nodes_that_share_a_cell() {
+        // Against a plain construction: every pair of free dofs (r ≥ c) of
+        // nodes in one cell, per column in ascending rows.
+        let case = cases::sphere_in_box_3d(2, 2);
+        let (lin, _) = validate_and_orient(&case.mesh).unwrap();
+        let topo = Topology::new(&lin).unwrap();
+        let nodes = NodeSet::new(topo.simplex, 2, NodeSpacing::Optimal);
+        let mesh = HighOrderMesh::elevate(&lin, &topo, &nodes, NodeSpacing::Optimal).unwrap();
+        let dofs = DofMap::new(&mesh);
+        let mut columns = vec![std::collections::BTreeSet::new(); dofs.n_system];
+        for cell in mesh.cells.chunks_exact(mesh.nodes_per_cell()) {
+            for &a in cell {
+                for &b in cell {
+                    for (i, j) in (0..3).flat_map(|i| (0..3).map(move |j| (i, j))) {
+                        if let (Some(r), Some(c)) = (dofs.system_row(a * 3 + i), dofs.system_row(b * 3 + j)) {
+                            if r >= c {
+                                columns[c].insert(r as u32);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        let pattern = dofs.pattern(&mesh);
+        assert_eq!(pattern.n, dofs.n_system);
+        for (c, rows) in columns.iter().enumerate() {
+            let got = &pattern.row_idx[pattern.col_ptr[c]..pattern.col_ptr[c + 1]];
+            assert_eq!(got, rows.iter().copied().collect::<Vec<u32>>().as_slice(), "column {c}");
+        }
+        assert_eq!(pattern.col_ptr.len(), dofs.n_system + 1);
     }
 
     #[test]
