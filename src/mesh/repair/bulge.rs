@@ -37,6 +37,11 @@ pub struct BulgeSamples {
 
 /// The sample points of every tagged facet (module docs).
 pub fn bulge_samples(mesh: &LinearMesh) -> BulgeSamples {
+    bulge_samples_on(mesh, &boundary_facets(mesh))
+}
+
+/// [`bulge_samples`], the boundary facets of `mesh` known ([`boundary_facets`]).
+pub fn bulge_samples_on(mesh: &LinearMesh, boundary: &[FacetKey]) -> BulgeSamples {
     let d = mesh.dim;
     let mut s = BulgeSamples::default();
     if d == 2 {
@@ -56,7 +61,7 @@ pub fn bulge_samples(mesh: &LinearMesh) -> BulgeSamples {
     let tagged: HashMap<FacetKey, i32> =
         mesh.facets.chunks_exact(3).zip(&mesh.facet_tags).map(|(f, &t)| (facet_key(f), t)).collect();
     let mut edge_tags: HashMap<[usize; 2], Option<Option<i32>>> = HashMap::default();
-    for f in boundary_facets(mesh) {
+    for &f in boundary {
         let t = tagged.get(&f).copied();
         for e in [[f[0], f[1]], [f[1], f[2]], [f[0], f[2]]] {
             edge_tags

@@ -84,6 +84,11 @@ pub struct Criteria {
 impl Criteria {
     /// `bulge`: one value per facet of `mesh` ([`super::bulge::facet_bulges`]).
     pub fn new(mesh: &LinearMesh, bulge: &[f64]) -> Criteria {
+        Criteria::on_boundary(mesh, bulge, &boundary_facets(mesh))
+    }
+
+    /// [`Criteria::new`], the boundary facets of `mesh` known ([`boundary_facets`]).
+    pub fn on_boundary(mesh: &LinearMesh, bulge: &[f64], boundary: &[FacetKey]) -> Criteria {
         let d = mesh.dim;
         let mut surfaces: Vec<Vec<(i32, bool)>> = vec![Vec::new(); mesh.n_vertices()];
         let mut map = HashMap::default();
@@ -98,7 +103,7 @@ impl Criteria {
             }
             map.insert(facet_key(f), b);
         }
-        let boundary: HashSet<FacetKey> = boundary_facets(mesh).into_iter().collect();
+        let boundary: HashSet<FacetKey> = boundary.iter().copied().collect();
         let mut boundary_vertex = vec![false; mesh.n_vertices()];
         for f in &boundary {
             for &v in f.iter().filter(|&&v| v != usize::MAX) {

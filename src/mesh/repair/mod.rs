@@ -154,7 +154,7 @@ pub fn repair_with<E>(
     let mut m = Measured::of(&cur, &mut measure)?;
     // The criteria of `cur`, made again whenever it changes but by the
     // flips and splits, which keep its facets and boundary.
-    let mut crit = Criteria::new(&cur, &m.bulge);
+    let mut crit = Criteria::on_boundary(&cur, &m.bulge, &m.boundary);
     for round in 0..MAX_ROUNDS {
         let bad = crit.bad_cells(&cur);
         if round == 0 {
@@ -172,7 +172,7 @@ pub fn repair_with<E>(
         same = kept.iter().map(|&c| same[c]).collect();
         cur = next;
         m = Measured::of(&cur, &mut measure)?;
-        crit = Criteria::new(&cur, &m.bulge);
+        crit = Criteria::on_boundary(&cur, &m.bulge, &m.boundary);
     }
     // Surface edges whose facet folds once curved; a flip that does not
     // lower the squeeze is refused and its round done again without it.
@@ -193,7 +193,7 @@ pub fn repair_with<E>(
         origin = round.origin;
         cur = round.mesh;
         m = next;
-        crit = Criteria::new(&cur, &m.bulge);
+        crit = Criteria::on_boundary(&cur, &m.bulge, &m.boundary);
     }
     let bulge = m.bulge;
     let (r, o) = flip_round(&cur, &bulge, &crit, origin, mesh);
@@ -296,8 +296,10 @@ fn flip_round(
     (Repaired { mesh: out, input_cell, summary }, origin)
 }
 
-/// The bulge samples of a mesh, their projections and the bulge of each facet.
+/// The bulge samples of a mesh, their projections and the bulge of each
+/// facet, and its boundary facets (for its [`Criteria`]).
 struct Measured {
+    boundary: Vec<geom::FacetKey>,
     samples: BulgeSamples,
     projected: Vec<[f64; 3]>,
     bulge: Vec<f64>,
@@ -308,10 +310,11 @@ impl Measured {
         mesh: &LinearMesh,
         measure: &mut impl FnMut(&LinearMesh, &BulgeSamples) -> Result<Vec<[f64; 3]>, E>,
     ) -> Result<Measured, E> {
-        let samples = bulge_samples(mesh);
+        let boundary = geom::boundary_facets(mesh);
+        let samples = bulge::bulge_samples_on(mesh, &boundary);
         let projected = measure(mesh, &samples)?;
         let bulge = facet_bulges(mesh, &samples, &projected);
-        Ok(Measured { samples, projected, bulge })
+        Ok(Measured { boundary, samples, projected, bulge })
     }
 }
 
