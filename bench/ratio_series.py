@@ -37,11 +37,18 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from compare_parts import CURVATURE, MODELS, ROOT  # noqa: E402
 
 
-def wall(cmd, env=None):
-    """Run cmd quietly; return its wall seconds, or raise on failure."""
+def wall(cmd, output, env=None):
+    """Run cmd quietly; return its wall seconds. Exits if it wrote no `output`
+    (gmsh's optimiser may log an error, "Failed to reach critical value",
+    and exit 1 with its mesh written, which is then timed like any other)."""
+    if os.path.exists(output):
+        os.remove(output)
     t0 = time.monotonic()
-    subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env, check=True)
-    return time.monotonic() - t0
+    rc = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env).returncode
+    seconds = time.monotonic() - t0
+    if not os.path.exists(output):
+        sys.exit(f"exit status {rc} and no {output}: {' '.join(cmd)}")
+    return seconds
 
 
 def main():
@@ -75,9 +82,10 @@ def main():
 
     sizes = ["-setnumber", "Mesh.MeshSizeMax", str(h), "-setnumber", "Mesh.MeshSizeMin", str(0.1 * h),
              "-setnumber", "Mesh.MeshSizeFromCurvature", str(CURVATURE), "-format", "msh41"]
+    opt_msh, lin_msh = os.path.join(args.out, "gmsh.msh"), os.path.join(args.out, "gmsh-linear.msh")
     gmsh_opt = [args.gmsh, path, "-3", "-order", str(args.order), *sizes,
-                "-setnumber", "Mesh.HighOrderOptimize", "2", "-o", os.path.join(args.out, "gmsh.msh")]
-    gmsh_lin = [args.gmsh, path, "-3", "-order", "1", *sizes, "-o", os.path.join(args.out, "gmsh-linear.msh")]
+                "-setnumber", "Mesh.HighOrderOptimize", "2", "-o", opt_msh]
+    gmsh_lin = [args.gmsh, path, "-3", "-order", "1", *sizes, "-o", lin_msh]
 
     seconds = {"gmsh": []}
     q3 = {}
@@ -85,7 +93,7 @@ def main():
     for name, _ in libraries:
         seconds[name], q3[name] = [], []
     for r in range(args.rounds):
-        seconds["gmsh"].append(wall(gmsh_opt) - wall(gmsh_lin))
+        seconds["gmsh"].append(wall(gmsh_opt, opt_msh) - wall(gmsh_lin, lin_msh))
         k = r % len(libraries)
         for name, where in libraries[k:] + libraries[:k]:
             env = dict(os.environ)
@@ -93,11 +101,11 @@ def main():
                 env["LD_LIBRARY_PATH"] = where
             base = os.path.join(args.out, name)
             wall([args.hocurve_occt, path, "--order", str(args.order), "--mesh-size", str(h),
-                  "--output", base + ".msh", "--report", base + ".json"], env)
+                  "--output", base + ".msh", "--report", base + ".json"], base + ".json", env)
             with open(base + ".json") as f:
                 report = json.load(f)
             seconds[name].append(report["seconds"]["curve"])
-            q3[name].append(report["min_q3"])
+            q3[name].append(report["min_q3"] if report["invalid_elements"] == 0 else float("nan"))
         first = os.path.join(args.out, libraries[0][0] + ".msh")
         for name, _ in libraries[1:]:
             identical &= filecmp.cmp(first, os.path.join(args.out, name + ".msh"), shallow=False)
@@ -109,7 +117,8 @@ def main():
     print("|---|---|---|---|---|")
     for tool, s in seconds.items():
         med = statistics.median(s)
-        quality = "" if tool == "gmsh" else f"{min(q3[tool]):.4f}"
+        # (nan: a run left invalid cells; its mesh is written all the same)
+        quality = "" if tool == "gmsh" else f"{min(q3[tool], key=lambda q: (q == q, q)):.4f}"
         ratio = "" if tool == "gmsh" else f"{gmsh / med:.1f}"
         label = "gmsh optimiser" if tool == "gmsh" else f"hocurve ({tool})"
         print(f"| {label} | {med:.3f} | {min(s):.3f}–{max(s):.3f} | {quality} | {ratio} |")
