@@ -626,13 +626,18 @@ mod tests {
     use crate::mesh::{validate_and_orient, Topology};
     use crate::reference::{NodeSet, NodeSpacing};
 
-    #[test]
-    fn coloring_covers_every_cell_once_and_no_colour_shares_a_vertex() {
-        let case = cases::sphere_in_box_3d(2, 2);
+    /// The built-in sphere cavity (`n` cells a side) elevated straight to order 2.
+    fn sphere_at_order_2(n: usize) -> HighOrderMesh {
+        let case = cases::sphere_in_box_3d(n, 2);
         let (lin, _) = validate_and_orient(&case.mesh).unwrap();
         let topo = Topology::new(&lin).unwrap();
         let nodes = NodeSet::new(topo.simplex, 2, NodeSpacing::Optimal);
-        let mesh = HighOrderMesh::elevate(&lin, &topo, &nodes, NodeSpacing::Optimal).unwrap();
+        HighOrderMesh::elevate(&lin, &topo, &nodes, NodeSpacing::Optimal).unwrap()
+    }
+
+    #[test]
+    fn coloring_covers_every_cell_once_and_no_colour_shares_a_vertex() {
+        let mesh = sphere_at_order_2(2);
         let colors = color_cells(&mesh);
         let mut seen = vec![0; mesh.n_cells()];
         for group in &colors {
@@ -652,11 +657,7 @@ mod tests {
     fn the_pattern_couples_the_free_dofs_of_nodes_that_share_a_cell() {
         // Against a plain construction: every pair of free dofs (r ≥ c) of
         // nodes in one cell, per column in ascending rows.
-        let case = cases::sphere_in_box_3d(2, 2);
-        let (lin, _) = validate_and_orient(&case.mesh).unwrap();
-        let topo = Topology::new(&lin).unwrap();
-        let nodes = NodeSet::new(topo.simplex, 2, NodeSpacing::Optimal);
-        let mesh = HighOrderMesh::elevate(&lin, &topo, &nodes, NodeSpacing::Optimal).unwrap();
+        let mesh = sphere_at_order_2(2);
         let dofs = DofMap::new(&mesh);
         let mut columns = vec![std::collections::BTreeSet::new(); dofs.n_system];
         for cell in mesh.cells.chunks_exact(mesh.nodes_per_cell()) {
@@ -687,12 +688,9 @@ mod tests {
         use crate::material::LinearElastic;
         use crate::quadrature::simplex_rule;
         use crate::reference::LagrangeBasis;
-        let case = cases::sphere_in_box_3d(3, 2);
-        let (lin, _) = validate_and_orient(&case.mesh).unwrap();
-        let topo = Topology::new(&lin).unwrap();
-        let nodes = NodeSet::new(topo.simplex, 2, NodeSpacing::Optimal);
-        let mesh = HighOrderMesh::elevate(&lin, &topo, &nodes, NodeSpacing::Optimal).unwrap();
-        let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(topo.simplex, 4));
+        let mesh = sphere_at_order_2(3);
+        let nodes = NodeSet::new(mesh.simplex, 2, NodeSpacing::Optimal);
+        let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(mesh.simplex, 4));
         let kernel = LinearElasticKernel { cache, material: LinearElastic::try_from_young_poisson(1.0, 0.3).unwrap() };
         let prescribed: Vec<f64> = (0..mesh.coords.len()).map(|i| (i as f64 * 0.1).sin()).collect();
         let run = |threads: usize| {
