@@ -686,7 +686,7 @@ mod tests {
         let projector = Mutex::new(&counting as &dyn Projector);
         let moved: BTreeSet<usize> = edge.inner.iter().copied().collect();
         let lazy = Baseline::new(&coords);
-        assert!(pieces.faithful(&projector, &[&cells[..npc]], &cells, &constraint, &moved, &[slid.clone()], &lazy, 1.0));
+        assert!(pieces.faithful(&projector, &[&cells[..npc]], &cells, &constraint, &moved, std::slice::from_ref(&slid), &lazy, 1.0));
         assert_eq!(lazy.swept(), Some((0, 2)), "probed, not sampled in full");
         // The edge before and after, and one probe per edge on the circle.
         let per_edge = edge.values.len() / npc;

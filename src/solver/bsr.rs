@@ -143,7 +143,7 @@ impl BlockSym32 {
             }
         }
         let bb = b * b;
-        let up = BlockRows::from_lists(&upper, bb);
+        let up = BlockRows::from_lists(upper, bb);
         let lo = BlockRows::from_lists(&lower, bb);
         if up.col.len() >= u32::MAX as usize {
             return Err(Error::solver(

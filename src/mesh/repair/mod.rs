@@ -251,7 +251,7 @@ fn flip_round(
         summary.surface_cells += a.surface as usize;
         summary.bulge_cells += a.bulge as usize;
     }
-    let mut w = Work::new(mesh, &crit, origin);
+    let mut w = Work::new(mesh, crit, origin);
     for _ in 0..MAX_PASSES {
         let bad: Vec<usize> = (0..w.cells.len()).filter(|&c| w.alive[c] && w.assessment[c].is_bad()).collect();
         let mut changed = false;
