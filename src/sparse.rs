@@ -151,3 +151,15 @@ impl NodeGroups {
     }
 }
 
+/// `values` cut into the disjoint slices of compressed rows `ptr`, with
+/// `per` values per entry (row k: entries ptr[k]..ptr[k + 1]).
+pub(crate) fn split_by<'a, T>(values: &'a mut [T], ptr: &[usize], per: usize) -> Vec<&'a mut [T]> {
+    let mut rows = Vec::with_capacity(ptr.len().saturating_sub(1));
+    let mut rest = values;
+    for w in ptr.windows(2) {
+        let (head, tail) = rest.split_at_mut((w[1] - w[0]) * per);
+        rows.push(head);
+        rest = tail;
+    }
+    rows
+}

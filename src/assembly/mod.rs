@@ -213,7 +213,7 @@ impl DofMap {
             node_ptr.push(col_ptr[col_ptr.len() - 1]);
         }
         let mut row_idx = vec![0u32; col_ptr[col_ptr.len() - 1]];
-        crate::solver::split_by(&mut row_idx, &node_ptr, 1).into_par_iter().zip(&nodes).for_each(|(out, &(n, nb))| {
+        crate::sparse::split_by(&mut row_idx, &node_ptr, 1).into_par_iter().zip(&nodes).for_each(|(out, &(n, nb))| {
             let mut k = 0;
             for c in 0..dim {
                 for &m in nb {

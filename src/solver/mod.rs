@@ -22,6 +22,7 @@ mod lu;
 pub(crate) mod metis;
 pub use metis::partition;
 
+pub(crate) use crate::sparse::split_by;
 pub use crate::sparse::{NodeGroups, SparseRows, SymmetricCsc};
 pub use cholesky::{nested_dissection, node_block_size, DirectOrdering, SparseCholesky};
 pub use direct::DirectSolver;
@@ -225,17 +226,4 @@ impl SolverChoice {
             _ => Err(Error::InvalidInput(format!("unknown linear solver '{s}' (expected auto, direct or iterative)"))),
         }
     }
-}
-
-/// `values` cut into the disjoint slices of compressed rows `ptr`, with
-/// `per` values per entry (row k: entries ptr[k]..ptr[k + 1]).
-pub(crate) fn split_by<'a, T>(values: &'a mut [T], ptr: &[usize], per: usize) -> Vec<&'a mut [T]> {
-    let mut rows = Vec::with_capacity(ptr.len().saturating_sub(1));
-    let mut rest = values;
-    for w in ptr.windows(2) {
-        let (head, tail) = rest.split_at_mut((w[1] - w[0]) * per);
-        rows.push(head);
-        rest = tail;
-    }
-    rows
 }
