@@ -2,7 +2,7 @@
 """hocurve-occt against gmsh 4.8's optimiser on one part, in interleaved rounds.
 
     bench/ratio_series.py --model screw --order 2 [--rounds 10]
-                          [--library NAME=DIR ...] [--cad DIR] [--out DIR]
+                          [--library NAME=DIR[,BINARY] ...] [--cad DIR] [--out DIR]
 
 On a machine whose speed drifts by 20-30 % within minutes, a ratio of two
 times measured an hour apart says little. Each round here runs, back to
@@ -17,7 +17,9 @@ uses.
 --library NAME=DIR runs hocurve-occt with LD_LIBRARY_PATH=DIR, i.e. with
 the libhocurve.so.0.4 in DIR instead of the installed one; without any,
 the installed library alone ("installed"). Use it to compare two builds:
-copy target/release/libhocurve.so to DIR/libhocurve.so.0.4. The table
+copy target/release/libhocurve.so to DIR/libhocurve.so.0.4. With
+NAME=DIR,BINARY that variant runs the hocurve-occt BINARY instead of
+--hocurve-occt's (to compare two builds of the host program too). The table
 gives per tool the median and range of its curving seconds, hocurve's min
 Q3 (scaled Jacobian, from its report), the ratio of gmsh's median to each
 library's, and whether the libraries wrote byte-identical meshes in every
@@ -56,7 +58,7 @@ def main():
     ap.add_argument("--model", required=True, help="one of: " + ", ".join(m[0] for m in MODELS))
     ap.add_argument("--order", type=int, required=True)
     ap.add_argument("--rounds", type=int, default=10)
-    ap.add_argument("--library", action="append", default=[], metavar="NAME=DIR")
+    ap.add_argument("--library", action="append", default=[], metavar="NAME=DIR[,BINARY]")
     ap.add_argument("--cad", default=os.environ.get("HOCURVE_CAD", "/work/shared/cad"))
     ap.add_argument("--hocurve-occt", default=os.path.join(ROOT, "build-occt", "hocurve-occt"))
     ap.add_argument("--gmsh", default="gmsh")
@@ -73,11 +75,14 @@ def main():
     libraries = []
     for spec in args.library:
         name, sep, where = spec.partition("=")
+        where, _, binary = where.partition(",")
         if not sep or not name or not os.path.isfile(os.path.join(where, "libhocurve.so.0.4")):
-            sys.exit(f"--library {spec!r}: expected NAME=DIR with DIR/libhocurve.so.0.4")
-        libraries.append((name, os.path.abspath(where)))
+            sys.exit(f"--library {spec!r}: expected NAME=DIR[,BINARY] with DIR/libhocurve.so.0.4")
+        if binary and not os.access(binary, os.X_OK):
+            sys.exit(f"--library {spec!r}: {binary} is not an executable")
+        libraries.append((name, os.path.abspath(where), binary or args.hocurve_occt))
     if not libraries:
-        libraries = [("installed", None)]
+        libraries = [("installed", None, args.hocurve_occt)]
     os.makedirs(args.out, exist_ok=True)
 
     sizes = ["-setnumber", "Mesh.MeshSizeMax", str(h), "-setnumber", "Mesh.MeshSizeMin", str(0.1 * h),
@@ -90,24 +95,24 @@ def main():
     seconds = {"gmsh": []}
     q3 = {}
     identical = True
-    for name, _ in libraries:
+    for name, _, _ in libraries:
         seconds[name], q3[name] = [], []
     for r in range(args.rounds):
         seconds["gmsh"].append(wall(gmsh_opt, opt_msh) - wall(gmsh_lin, lin_msh))
         k = r % len(libraries)
-        for name, where in libraries[k:] + libraries[:k]:
+        for name, where, binary in libraries[k:] + libraries[:k]:
             env = dict(os.environ)
             if where:
                 env["LD_LIBRARY_PATH"] = where
             base = os.path.join(args.out, name)
-            wall([args.hocurve_occt, path, "--order", str(args.order), "--mesh-size", str(h),
+            wall([binary, path, "--order", str(args.order), "--mesh-size", str(h),
                   "--output", base + ".msh", "--report", base + ".json"], base + ".json", env)
             with open(base + ".json") as f:
                 report = json.load(f)
             seconds[name].append(report["seconds"]["curve"])
             q3[name].append(report["min_q3"] if report["invalid_elements"] == 0 else float("nan"))
         first = os.path.join(args.out, libraries[0][0] + ".msh")
-        for name, _ in libraries[1:]:
+        for name, _, _ in libraries[1:]:
             identical &= filecmp.cmp(first, os.path.join(args.out, name + ".msh"), shallow=False)
         print(f"round {r + 1}: " + ", ".join(f"{t} {s[-1]:.3f}" for t, s in seconds.items()), file=sys.stderr)
 
