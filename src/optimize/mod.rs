@@ -1315,22 +1315,32 @@ mod tests {
         (0..mesh.n_cells()).map(|c| ctx.cell_state(&mesh.coords, mesh.cell(c), straight)).map(|s| (s.q, s.cert)).unzip()
     }
 
+    /// The view of `mesh` that a round's patches read.
+    fn view_of<'v>(
+        mesh: &'v HighOrderMesh,
+        straight: &'v [f64],
+        cell_quality: &'v [ElementQuality],
+        certified: &'v [CertifiedJacobian],
+    ) -> MeshView<'v> {
+        MeshView {
+            coords: &mesh.coords,
+            cells: &mesh.cells,
+            npc: mesh.nodes_per_cell(),
+            constraint: &mesh.constraint,
+            straight,
+            cell_quality,
+            certified,
+        }
+    }
+
     #[test]
     fn a_patch_energy_weighs_its_focused_cells_its_gradient_matches_finite_differences_and_threads_do_not_change_it() {
         let (mesh, straight, basis) = jittered_annulus();
-        let (dim, npc) = (2, mesh.nodes_per_cell());
+        let dim = 2;
         let sampling = quality::sampling_cache(&basis);
         let ctx = PatchContext::new(&basis, &sampling);
         let (q, cert) = cell_states(&ctx, &mesh, &straight);
-        let view = MeshView {
-            coords: &mesh.coords,
-            cells: &mesh.cells,
-            npc,
-            constraint: &mesh.constraint,
-            straight: &straight,
-            cell_quality: &q,
-            certified: &cert,
-        };
+        let view = view_of(&mesh, &straight, &q, &cert);
         let worst = (0..mesh.n_cells()).min_by(|&a, &b| q[a].q3.total_cmp(&q[b].q3)).unwrap();
         let patch = build_patches(&mesh, &NodeCells::new(&mesh), &[worst], 1).remove(0);
         let mut q3: Vec<f64> = patch.cells.iter().map(|&c| q[c].q3).collect();
@@ -1412,19 +1422,11 @@ mod tests {
         let case = crate::cases::annulus_2d(0.5, 1.0, 48, 3);
         let projector: &dyn Projector = &case.projector;
         let projector = Mutex::new(projector);
-        let (dim, npc) = (2, mesh.nodes_per_cell());
+        let dim = 2;
         let sampling = quality::sampling_cache(&basis);
         let ctx = PatchContext::new(&basis, &sampling);
         let (q, cert) = cell_states(&ctx, &mesh, &straight);
-        let view = MeshView {
-            coords: &mesh.coords,
-            cells: &mesh.cells,
-            npc,
-            constraint: &mesh.constraint,
-            straight: &straight,
-            cell_quality: &q,
-            certified: &cert,
-        };
+        let view = view_of(&mesh, &straight, &q, &cert);
         // Every cell of the ring: one patch, with boundary nodes on both circles.
         let all: Vec<usize> = (0..mesh.n_cells()).collect();
         let patch = build_patches(&mesh, &NodeCells::new(&mesh), &all, 1).remove(0);
