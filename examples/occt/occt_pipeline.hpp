@@ -902,12 +902,10 @@ class Placer {
       info.diam = std::max(info.diam, detail::dist3(a.data(), b.data()));
     }
     if (seam) ++seam_facets;
-    // A plane's parametrisation is affine: its facets are not distorted
-    // (a third of U_Joint_2's facets and half the crankshaft's).
-    if (info.miss == Miss::None && param_info(2, tag).affine) {
-      if (pole) ++pole_facets;
-    } else if (info.miss == Miss::None) {
-      if (pole) ++pole_facets;
+    if (info.miss == Miss::None && pole) ++pole_facets;
+    // A plane's parametrisation is affine: its facets are not distorted, and
+    // are not sampled (a third of U_Joint_2's facets, half the crankshaft's).
+    if (info.miss == Miss::None && !param_info(2, tag).affine) {
       static const double samples[4][3] = {{1 / 3., 1 / 3., 1 / 3.}, {0.5, 0.5, 0}, {0, 0.5, 0.5}, {0.5, 0, 0.5}};
       double worst = 0;
       for (auto &l : samples) {
