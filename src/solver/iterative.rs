@@ -69,7 +69,7 @@
 
 use super::bsr::{BlockSym32, Operator};
 use super::lines::LineFactors;
-use super::pcg::{pcg, BlockJacobi, PcgFailure, PcgParams, SymmetricOperator, WithValues};
+use super::pcg::{axpby_in_place, pcg, BlockJacobi, PcgFailure, PcgParams, SymmetricOperator, WithValues};
 use super::pmg::{Chebyshev, ChebyshevParams, Hierarchy, VCycle};
 use super::SparseRows;
 use super::{DirectSolver, FallbackReason, LinearSolver, NodeGroups, SolveStats, SolvedBy, SymmetricCsc};
@@ -316,20 +316,27 @@ impl IterativeSolver {
 
     /// The decimal digits by which PCG must reduce the residual of the start
     /// `x`, log₁₀(‖b − A x‖ / (rtol ‖b‖)): at most 0 if `x` solves the system
-    /// already; infinite for b = 0 (PCG's own case).
-    fn digits_to_gain(&self, pattern: &SymmetricCsc, values: &[f64], rhs: &[f64], x: &[f64]) -> f64 {
+    /// already; infinite for b = 0 (PCG's own case). With it, the residual
+    /// b − A x when it took a product to find (a nonzero start), for PCG.
+    fn digits_to_gain(
+        &self,
+        pattern: &SymmetricCsc,
+        values: &[f64],
+        rhs: &[f64],
+        x: &[f64],
+    ) -> (f64, Option<Vec<f64>>) {
         let b = rhs.iter().map(|v| v * v).sum::<f64>().sqrt();
         if b == 0.0 {
-            return f64::INFINITY;
+            return (f64::INFINITY, None);
         }
-        let r = if x.iter().all(|&v| v == 0.0) {
-            b
-        } else {
-            let mut r = vec![0.0; rhs.len()];
-            self.op.with(pattern, values).matvec_into(x, &mut r);
-            r.iter().zip(rhs).map(|(ax, b)| (b - ax) * (b - ax)).sum::<f64>().sqrt()
-        };
-        (r / (self.params.pcg.rtol * b)).log10()
+        if x.iter().all(|&v| v == 0.0) {
+            return ((b / (self.params.pcg.rtol * b)).log10(), None);
+        }
+        let mut r = vec![0.0; rhs.len()];
+        self.op.with(pattern, values).matvec_into(x, &mut r);
+        axpby_in_place(1.0, rhs, -1.0, &mut r);
+        let norm = r.iter().map(|v| v * v).sum::<f64>().sqrt();
+        ((norm / (self.params.pcg.rtol * b)).log10(), Some(r))
     }
 
     /// The iterations a solve with the kept smoother may take to gain
@@ -350,6 +357,7 @@ impl IterativeSolver {
         x: &mut [f64],
         mode: Mode,
         budget: Option<usize>,
+        residual: Option<Vec<f64>>,
     ) -> std::result::Result<usize, Breakdown> {
         let kept = self.kept.take().filter(|_| mode == Mode::Fast && budget.is_some());
         let reused = kept.is_some();
@@ -394,6 +402,7 @@ impl IterativeSolver {
                 &mut |r, z| pre.apply_into(r, z),
                 rhs,
                 x,
+                residual,
                 self.params.pcg,
                 self.params.stagnation_window,
                 &mut |it| eigenvalues(it) && Some(it) != budget,
@@ -403,7 +412,7 @@ impl IterativeSolver {
             // The kept smoother is too slow for this matrix: on from the
             // iterate with one built for it.
             self.set_aside(smoother, false);
-            return self.try_pcg_solve(pattern, values, rhs, x, mode, None).map(|it| it + spent).map_err(|mut b| {
+            return self.try_pcg_solve(pattern, values, rhs, x, mode, None, None).map(|it| it + spent).map_err(|mut b| {
                 b.iterations += spent;
                 b
             });
@@ -532,14 +541,14 @@ impl LinearSolver for IterativeSolver {
     fn solve(&mut self, pattern: &SymmetricCsc, values: &[f64], rhs: &[f64], x: &mut [f64]) -> Result<SolveStats> {
         // A start that already meets the tolerance (a step retried from the
         // same matrix) needs no preconditioner.
-        let digits = self.digits_to_gain(pattern, values, rhs, x);
+        let (digits, residual) = self.digits_to_gain(pattern, values, rhs, x);
         if digits <= 0.0 {
             return Ok(SolveStats { iterations: 0, solved_by: SolvedBy::Pcg, fallback: None });
         }
         let x0 = x.to_vec();
         let mode = if self.params.safe_preconditioner { Mode::Safe } else { Mode::Fast };
         let budget = self.reuse_budget(digits);
-        let first = match self.try_pcg_solve(pattern, values, rhs, x, mode, budget) {
+        let first = match self.try_pcg_solve(pattern, values, rhs, x, mode, budget, residual) {
             Ok(iterations) => {
                 // A fresh smoother's rate: the yardstick of the kept one.
                 if budget.is_none() && digits.is_finite() && iterations > 0 {
@@ -557,7 +566,7 @@ impl LinearSolver for IterativeSolver {
             if !x.iter().all(|v| v.is_finite()) {
                 x.copy_from_slice(&x0);
             }
-            match self.try_pcg_solve(pattern, values, rhs, x, Mode::Safe, None) {
+            match self.try_pcg_solve(pattern, values, rhs, x, Mode::Safe, None, None) {
                 Ok(it) => {
                     return Ok(SolveStats { iterations: iterations + it, solved_by: SolvedBy::PcgRestarted, fallback })
                 }

@@ -370,7 +370,7 @@ pub fn try_pcg(
     x: &mut [f64],
     params: PcgParams,
 ) -> Result<usize> {
-    pcg(apply_a, apply_m, b, x, params, 0, &mut |_| true).map_err(Error::from)
+    pcg(apply_a, apply_m, b, x, None, params, 0, &mut |_| true).map_err(Error::from)
 }
 
 /// [`try_pcg`] with the reason of a failure, and, unless `stagnation_window`
@@ -381,11 +381,16 @@ pub fn try_pcg(
 /// may stop it by returning false (it does not change the iterates
 /// otherwise). On failure `x` holds the last iterate (not finite after
 /// [`PcgFailure::NonFinite`]).
+///
+/// `residual` is b − A x for the start `x` when the caller has it already
+/// (None: computed here), which saves a product with A.
+#[allow(clippy::too_many_arguments)]
 pub fn pcg(
     apply_a: &mut dyn FnMut(&[f64], &mut [f64]),
     apply_m: &mut Preconditioner<'_>,
     b: &[f64],
     x: &mut [f64],
+    residual: Option<Vec<f64>>,
     params: PcgParams,
     stagnation_window: usize,
     check: &mut dyn FnMut(usize) -> bool,
@@ -397,9 +402,18 @@ pub fn pcg(
         return Ok(0);
     }
     let target = params.rtol * b_norm;
-    let mut r = vec![0.0; n];
-    apply_a(x, &mut r);
-    axpby_in_place(1.0, b, -1.0, &mut r);
+    let mut r = match residual {
+        Some(r) => {
+            assert_eq!(r.len(), n, "the start's residual has the wrong length");
+            r
+        }
+        None => {
+            let mut r = vec![0.0; n];
+            apply_a(x, &mut r);
+            axpby_in_place(1.0, b, -1.0, &mut r);
+            r
+        }
+    };
     let mut r_norm = dot(&r, &r).sqrt();
     if r_norm <= target {
         return Ok(0);
@@ -883,7 +897,7 @@ pub(crate) mod tests {
         };
         let params = PcgParams { rtol: 1e-10, max_iterations: 5000 };
         let mut x = vec![0.0; n];
-        let r = pcg(&mut apply_a, &mut varying, &b, &mut x, params, 20, &mut |_| true);
+        let r = pcg(&mut apply_a, &mut varying, &b, &mut x, None, params, 20, &mut |_| true);
         assert!(matches!(r, Err(PcgFailure::Stagnated { window: 20, .. })), "{r:?}");
         assert!(x.iter().all(|v| v.is_finite()));
         let mut x = vec![0.0; n];
@@ -891,8 +905,39 @@ pub(crate) mod tests {
             z.copy_from_slice(r);
             Ok(())
         };
-        let r = pcg(&mut apply_a, &mut identity, &b, &mut x, params, 0, &mut |it| it < 3);
+        let r = pcg(&mut apply_a, &mut identity, &b, &mut x, None, params, 0, &mut |it| it < 3);
         assert_eq!(r, Err(PcgFailure::Stopped { iteration: 3 }));
+    }
+
+    #[test]
+    fn a_given_start_residual_saves_one_product_and_changes_no_iterate() {
+        let (a, v) = grid_laplacian(9, 1);
+        let b: Vec<f64> = (0..a.n).map(|i| 1.0 + (i as f64 * 0.7).sin()).collect();
+        let start: Vec<f64> = (0..a.n).map(|i| (i as f64 * 0.3).cos()).collect();
+        let params = PcgParams { rtol: 1e-8, max_iterations: 500 };
+        let run = |residual: Option<Vec<f64>>| {
+            let mut products = 0;
+            let mut apply_a = |x: &[f64], y: &mut [f64]| {
+                products += 1;
+                y.copy_from_slice(&a.sym_matvec(&v, x));
+            };
+            let mut identity = |r: &[f64], z: &mut [f64]| {
+                z.copy_from_slice(r);
+                Ok(())
+            };
+            let mut x = start.clone();
+            let it = pcg(&mut apply_a, &mut identity, &b, &mut x, residual, params, 0, &mut |_| true).unwrap();
+            (it, products, x)
+        };
+        let (it, products, x) = run(None);
+        let r: Vec<f64> = a.sym_matvec(&v, &start).iter().zip(&b).map(|(ax, b)| b - ax).collect();
+        let (it_given, products_given, x_given) = run(Some(r));
+        assert!(it > 1);
+        assert_eq!((it_given, products_given), (it, products - 1));
+        assert!(x.iter().zip(&x_given).all(|(p, q)| p.to_bits() == q.to_bits()));
+        // The given residual is the one used: a wrong one leads elsewhere.
+        let (_, _, x_wrong) = run(Some(b.clone()));
+        assert!(x.iter().zip(&x_wrong).any(|(p, q)| (p - q).abs() > 1e-3));
     }
 
     #[test]
