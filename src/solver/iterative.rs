@@ -349,6 +349,7 @@ impl IterativeSolver {
 
     /// One PCG attempt with the preconditioner built in `mode`, or, in the
     /// fast mode with `budget` iterations, with the kept smoother first.
+    #[allow(clippy::too_many_arguments)]
     fn try_pcg_solve(
         &mut self,
         pattern: &SymmetricCsc,
