@@ -348,7 +348,8 @@ impl IterativeSolver {
     }
 
     /// One PCG attempt with the preconditioner built in `mode`, or, in the
-    /// fast mode with `budget` iterations, with the kept smoother first.
+    /// fast mode with `budget` iterations, with the kept smoother first;
+    /// `residual` is b − A x of the start when already computed.
     #[allow(clippy::too_many_arguments)]
     fn try_pcg_solve(
         &mut self,
