@@ -40,10 +40,10 @@ pub struct BlockSym32 {
     /// Upper blocks (J, I ≥ J) of row J, in the order of column J·b of the
     /// lower triangle (the diagonal block first).
     up: BlockRows,
-    /// Strictly lower blocks (I, J < I) of row I.
+    /// Strictly lower blocks (I, J < I) of row I, the transposes of upper
+    /// ones (found again at each fill: an index per block would cost 44
+    /// bytes per unknown at p = 4 in 3D).
     lo: BlockRows,
-    /// Per lower block, its transpose (J, I) among the upper blocks.
-    lo_src: Vec<u32>,
 }
 
 #[derive(Debug, Clone, Default)]
@@ -151,18 +151,7 @@ impl BlockSym32 {
                 format!("block matrix: {} blocks do not fit 32-bit indices", up.col.len()),
             ));
         }
-        let lo_src: Vec<u32> = lower
-            .par_iter()
-            .enumerate()
-            .flat_map_iter(|(i, js)| {
-                let (up, upper) = (&up, &upper);
-                js.iter().map(move |&j| {
-                    let pos = upper[j as usize].binary_search(&(i as u32)).expect("transpose holds the entry");
-                    (up.ptr[j as usize] + pos) as u32
-                })
-            })
-            .collect();
-        Ok(BlockSym32 { b, n_blocks, up, lo, lo_src })
+        Ok(BlockSym32 { b, n_blocks, up, lo })
     }
 
     /// Numeric fill from the lower-triangle `values` of a matrix on the pattern
@@ -186,10 +175,14 @@ impl BlockSym32 {
                 }
             }
         });
-        let (up, src, ptr) = (&self.up.val, &self.lo_src, &self.lo.ptr);
+        let (up, lo_col, ptr) = (&self.up, &self.lo.col, &self.lo.ptr);
         super::split_by(&mut self.lo.val, ptr, bb).into_par_iter().enumerate().for_each(|(i, row)| {
             for (t, blk) in row.chunks_exact_mut(bb).enumerate() {
-                let from = &up[src[ptr[i] + t] as usize * bb..][..bb];
+                // Block (I, J) is the transpose of (J, I), in row J of the upper part.
+                let j = lo_col[ptr[i] + t] as usize;
+                let (s, e) = (up.ptr[j], up.ptr[j + 1]);
+                let pos = up.col[s..e].binary_search(&(i as u32)).expect("the transpose is an upper block");
+                let from = &up.val[(s + pos) * bb..][..bb];
                 for r in 0..b {
                     for c in 0..b {
                         blk[r * b + c] = from[c * b + r];
@@ -203,7 +196,7 @@ impl BlockSym32 {
     #[cfg(test)]
     pub fn memory_bytes(&self) -> usize {
         let part = |p: &BlockRows| p.ptr.len() * 8 + p.col.len() * 4 + p.val.len() * 4;
-        part(&self.up) + part(&self.lo) + self.lo_src.len() * 4
+        part(&self.up) + part(&self.lo)
     }
 
     fn apply_block<const B: usize>(&self, x: &[f64], y: &mut [f64]) {
