@@ -402,18 +402,13 @@ pub fn pcg(
         return Ok(0);
     }
     let target = params.rtol * b_norm;
-    let mut r = match residual {
-        Some(r) => {
-            assert_eq!(r.len(), n, "the start's residual has the wrong length");
-            r
-        }
-        None => {
-            let mut r = vec![0.0; n];
-            apply_a(x, &mut r);
-            axpby_in_place(1.0, b, -1.0, &mut r);
-            r
-        }
-    };
+    let mut r = residual.unwrap_or_else(|| {
+        let mut r = vec![0.0; n];
+        apply_a(x, &mut r);
+        axpby_in_place(1.0, b, -1.0, &mut r);
+        r
+    });
+    assert_eq!(r.len(), n, "the start's residual has the wrong length");
     let mut r_norm = dot(&r, &r).sqrt();
     if r_norm <= target {
         return Ok(0);
