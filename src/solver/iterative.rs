@@ -414,10 +414,12 @@ impl IterativeSolver {
             // The kept smoother is too slow for this matrix: on from the
             // iterate with one built for it.
             self.set_aside(smoother, false);
-            return self.try_pcg_solve(pattern, values, rhs, x, mode, None, None).map(|it| it + spent).map_err(|mut b| {
-                b.iterations += spent;
-                b
-            });
+            return self.try_pcg_solve(pattern, values, rhs, x, mode, None, None).map(|it| it + spent).map_err(
+                |mut b| {
+                    b.iterations += spent;
+                    b
+                },
+            );
         }
         let estimate = smoother.estimate();
         let outcome = pcg_outcome(it, fresh, estimate);
