@@ -33,7 +33,8 @@ use crate::sparse::SymmetricCsc;
 use crate::{Error, Result};
 
 /// Numbering of the degrees of freedom: dof = node · dim + component. The
-/// free dofs are numbered in dof order; with static condensation
+/// free dofs are numbered node by node in [`locality_order`], a node's
+/// components together; with static condensation
 /// ([`DofMap::condensed`]) the cell-interior ones come after all others, and
 /// the global system holds only the first `n_system`.
 #[derive(Debug, Clone)]
@@ -96,9 +97,10 @@ impl DofMap {
         let mut free = vec![usize::MAX; mesh.n_nodes() * dim];
         let mut n_free = 0;
         let mut n_system = 0;
+        let order = locality_order(mesh);
         for pass in [false, true] {
-            for (n, c) in mesh.constraint.iter().enumerate() {
-                if *c == NodeConstraint::Free && last(n) == pass {
+            for &n in &order {
+                if mesh.constraint[n] == NodeConstraint::Free && last(n) == pass {
                     for d in 0..dim {
                         free[n * dim + d] = n_free;
                         n_free += 1;
@@ -177,19 +179,20 @@ impl DofMap {
             fill[n] += 1;
         }
         let dim = self.dim;
-        // Per free node: sorted neighbour nodes with index ≥ itself.
+        // Per free node: its neighbour nodes with rows from its own on, by row.
         let columns: Vec<Vec<usize>> = (0..n_nodes)
             .into_par_iter()
             .map(|n| {
                 if self.system_row(n * dim).is_none() {
                     return Vec::new();
                 }
+                let row = |m: usize| self.free[m * dim];
                 let mut nb: Vec<usize> = node_cells[start[n]..start[n + 1]]
                     .iter()
                     .flat_map(|&c| mesh.cell(c).iter().copied())
-                    .filter(|&m| m >= n && self.system_row(m * dim).is_some())
+                    .filter(|&m| self.system_row(m * dim).is_some() && row(m) >= row(n))
                     .collect();
-                nb.sort_unstable();
+                nb.sort_unstable_by_key(|&m| row(m));
                 nb.dedup();
                 nb
             })
@@ -200,8 +203,10 @@ impl DofMap {
         // bytes per unknown held through the whole solve) and filled node
         // by node in parallel (serially, 2 ms of a 31,000-unknown p = 2
         // system, on the critical path).
-        let nodes: Vec<(usize, &[usize])> =
+        // Columns in the order of their rows.
+        let mut nodes: Vec<(usize, &[usize])> =
             columns.iter().enumerate().filter(|(_, nb)| !nb.is_empty()).map(|(n, nb)| (n, nb.as_slice())).collect();
+        nodes.sort_unstable_by_key(|&(n, _)| self.free[n * dim]);
         let mut col_ptr = Vec::with_capacity(self.n_system + 1);
         let mut node_ptr = Vec::with_capacity(nodes.len() + 1);
         col_ptr.push(0);
@@ -227,6 +232,71 @@ impl DofMap {
         });
         SymmetricCsc { n: self.n_system, col_ptr, row_idx }
     }
+}
+
+/// The mesh's nodes in an order that keeps the nodes of neighbouring cells
+/// near one another, whatever the input's numbering: the cells in
+/// breadth-first order through shared vertices (from cell 0, then from the
+/// first cell not reached), each cell's nodes taken as first met; nodes of
+/// no cell last. It depends on the cells only, so meshes with the same
+/// cells get the same numbering and pattern. The mesh's own numbering puts
+/// the vertices first, then the edges' nodes, the faces' and the cells':
+/// a node's neighbours sat in four distant ranges. On the sphere cavity at
+/// p = 4 (68k unknowns) the double-precision product, which reads the
+/// lower triangle in place, took 15.6 ms with it and 10.2 ms with this order.
+fn locality_order(mesh: &HighOrderMesh) -> Vec<usize> {
+    let (nv, nc) = (mesh.dim() + 1, mesh.n_cells());
+    let mut start = vec![0usize; mesh.n_vertices + 1];
+    for c in 0..nc {
+        for &v in &mesh.cell(c)[..nv] {
+            start[v + 1] += 1;
+        }
+    }
+    for i in 0..mesh.n_vertices {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    let mut vcells = vec![0usize; start[mesh.n_vertices]];
+    for c in 0..nc {
+        for &v in &mesh.cell(c)[..nv] {
+            vcells[fill[v]] = c;
+            fill[v] += 1;
+        }
+    }
+    let mut reached = vec![false; nc];
+    let mut queue = Vec::with_capacity(nc);
+    for seed in 0..nc {
+        if reached[seed] {
+            continue;
+        }
+        reached[seed] = true;
+        let mut head = queue.len();
+        queue.push(seed);
+        while head < queue.len() {
+            let c = queue[head];
+            head += 1;
+            for &v in &mesh.cell(c)[..nv] {
+                for &d in &vcells[start[v]..start[v + 1]] {
+                    if !reached[d] {
+                        reached[d] = true;
+                        queue.push(d);
+                    }
+                }
+            }
+        }
+    }
+    let mut seen = vec![false; mesh.n_nodes()];
+    let mut order = Vec::with_capacity(mesh.n_nodes());
+    for &c in &queue {
+        for &n in mesh.cell(c) {
+            if !seen[n] {
+                seen[n] = true;
+                order.push(n);
+            }
+        }
+    }
+    order.extend((0..mesh.n_nodes()).filter(|&n| !seen[n]));
+    order
 }
 
 /// Greedy colouring of the cells such that cells of one colour share no
@@ -274,9 +344,10 @@ pub fn color_cells(mesh: &HighOrderMesh) -> Vec<Vec<usize>> {
 }
 
 /// What every assembly on one mesh and pattern shares: the cell colours
-/// ([`color_cells`]) and, per cell and pair of its nodes (a, b) with
-/// node(a) > node(b), both free, the offset of row (node(a), 0) within column
-/// (node(b), 0) of the pattern, so that no assembly searches the pattern.
+/// ([`color_cells`]) and, per cell and pair of its nodes (a, b) whose rows
+/// are in the system with row(a) > row(b), the offset of row (node(a), 0)
+/// within column (node(b), 0) of the pattern, so that no assembly searches
+/// the pattern.
 /// One 4-byte offset per unordered pair of cell nodes ([`pair_index`]):
 /// 2.3 kB per cell at p = 4 in 3D.
 #[derive(Debug, Clone)]
@@ -303,10 +374,11 @@ impl AssemblyPlan {
             let cell = mesh.cell(c);
             for (ra, &na) in cell.iter().enumerate() {
                 for (cb, &nb) in cell.iter().enumerate() {
-                    if let (true, Some(r0), Some(s0)) = (na > nb, dofs.system_row(na * dim), dofs.system_row(nb * dim))
-                    {
-                        let k = pattern.position(r0, s0).expect("pattern covers every cell coupling");
-                        out[pair_index(ra, cb)] = (k - pattern.col_ptr[s0]) as u32;
+                    if let (Some(r0), Some(s0)) = (dofs.system_row(na * dim), dofs.system_row(nb * dim)) {
+                        if r0 > s0 {
+                            let k = pattern.position(r0, s0).expect("pattern covers every cell coupling");
+                            out[pair_index(ra, cb)] = (k - pattern.col_ptr[s0]) as u32;
+                        }
                     }
                 }
             }
@@ -406,7 +478,7 @@ impl Target<'_> {
         for (ra, &na) in cell.iter().enumerate() {
             let Some(r0) = dofs.system_row(na * dim) else { continue }; // prescribed, or condensed
             for (cb, &nb) in cell.iter().enumerate() {
-                let Some(s0) = dofs.system_row(nb * dim).filter(|_| na >= nb) else { continue };
+                let Some(s0) = dofs.system_row(nb * dim).filter(|&s0| r0 >= s0) else { continue };
                 // Offset of row (na, 0) within column (nb, 0).
                 let offset = if na == nb { 0 } else { offsets[pair_index(ra, cb)] as usize };
                 for j in 0..dim {
@@ -643,6 +715,29 @@ mod tests {
         let topo = Topology::new(&lin).unwrap();
         let nodes = NodeSet::new(topo.simplex, 2, NodeSpacing::Optimal);
         HighOrderMesh::elevate(&lin, &topo, &nodes, NodeSpacing::Optimal).unwrap()
+    }
+
+    #[test]
+    fn the_locality_order_is_a_permutation_that_keeps_a_cells_nodes_near() {
+        let mesh = sphere_at_order_2(3);
+        let order = locality_order(&mesh);
+        let mut seen = vec![false; mesh.n_nodes()];
+        order.iter().for_each(|&n| seen[n] = true);
+        assert!(seen.iter().all(|&s| s) && order.len() == mesh.n_nodes());
+        // A cell's nodes span less of the order than of the mesh's own
+        // numbering (vertices first, then edges).
+        let mut place = vec![0; mesh.n_nodes()];
+        order.iter().enumerate().for_each(|(k, &n)| place[n] = k);
+        let spread = |at: &dyn Fn(usize) -> usize| -> usize {
+            (0..mesh.n_cells())
+                .map(|c| {
+                    let k: Vec<usize> = mesh.cell(c).iter().map(|&n| at(n)).collect();
+                    k.iter().max().unwrap() - k.iter().min().unwrap()
+                })
+                .sum()
+        };
+        let (ordered, natural) = (spread(&|n| place[n]), spread(&|n| n));
+        assert!(2 * ordered < natural, "cell spread {ordered} in the order, {natural} in the mesh's numbering");
     }
 
     #[test]
