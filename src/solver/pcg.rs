@@ -19,7 +19,8 @@ use super::lines::LineFactors;
 use super::SymmetricCsc;
 use crate::{Error, Result, SolverFailure};
 
-/// Rows per parallel task of the matrix-vector product and vector updates.
+/// Rows per parallel task of the vector updates, the dot products, and the
+/// products and solves with the diagonal blocks.
 const CHUNK: usize = 2048;
 
 /// Rows per parallel task of the product with the stored lower triangle:
