@@ -370,6 +370,8 @@ int main(void) {
             "Newton tolerance must be positive");
   ON_HANDLE("set_threads: -1", mesh, 3, hoc_mesh_set_threads(mesh, -1), HOC_ERROR_INVALID_ARGUMENT,
             "n_threads must be >= 0");
+  ON_HANDLE("set_threads: 4097", mesh, 3, hoc_mesh_set_threads(mesh, 4097), HOC_ERROR_INVALID_ARGUMENT,
+            "threads must be at most 4096");
   ON_HANDLE("set_remove_caps: 2", mesh, 3, hoc_mesh_set_remove_caps(mesh, 2), HOC_ERROR_INVALID_ARGUMENT,
             "remove must be 0 or 1");
   ON_HANDLE("set_retry: 2", mesh, 3, hoc_mesh_set_retry(mesh, 2), HOC_ERROR_INVALID_ARGUMENT,

@@ -753,9 +753,11 @@ HocStatus hoc_mesh_set_linear_solver(HocMesh *mesh, HocLinearSolverFn solve, voi
 
 /**
  * Number of worker threads of this handle's own pool (0 = one per core).
+ * The pool is started in full by the next run, so counts above 4096 are
+ * refused.
  *
  * @param[in,out] mesh the handle
- * @param[in] n_threads ≥ 0
+ * @param[in] n_threads 0 to 4096
  * @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
  */
 HocStatus hoc_mesh_set_threads(HocMesh *mesh, int n_threads);

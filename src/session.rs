@@ -37,6 +37,11 @@ pub enum NodeOrdering {
     Vtk,
 }
 
+/// The most worker threads a session's pool may have. Each is an OS thread
+/// with its own stack, and a pool is started in full before any work: a
+/// count far above the machine's cores only costs time and memory.
+pub const MAX_THREADS: usize = 4096;
+
 /// See the module documentation.
 pub struct Session {
     /// The validated mesh as the host gave it, with its tags.
@@ -451,13 +456,17 @@ impl Session {
         self.external_solver = solver;
     }
 
-    /// Worker threads of this session's own pool (0 = one per core). The
-    /// host's global rayon pool is never used.
-    pub fn set_threads(&mut self, threads: usize) {
+    /// Worker threads of this session's own pool (0 = one per core, at most
+    /// [`MAX_THREADS`]). The host's global rayon pool is never used.
+    pub fn set_threads(&mut self, threads: usize) -> Result<()> {
+        if threads > MAX_THREADS {
+            return Err(Error::InvalidInput(format!("threads must be at most {MAX_THREADS}, got {threads}")));
+        }
         if threads != self.threads {
             self.threads = threads;
             self.pool = None;
         }
+        Ok(())
     }
 
     /// Curve the mesh in `increments` load increments. On error the session

@@ -5,7 +5,7 @@ use hocurve::cases;
 use hocurve::curve::Progress;
 use hocurve::geometry::Projector;
 use hocurve::reference::NodeSpacing;
-use hocurve::session::Session;
+use hocurve::session::{Session, MAX_THREADS};
 use hocurve::Error;
 
 /// Projects onto the circle r = 0.5, then spoils the answer as asked.
@@ -113,12 +113,24 @@ fn results_are_bitwise_identical_for_any_thread_count() {
     let mut b = session();
     a.set_projector(Some(Box::new(Faulty("ok"))));
     b.set_projector(Some(Box::new(Faulty("ok"))));
-    a.set_threads(1);
-    b.set_threads(2);
+    a.set_threads(1).unwrap();
+    b.set_threads(2).unwrap();
     a.run(3).unwrap();
     b.run(3).unwrap();
     // Coloured assembly is deterministic: bitwise the same.
     assert_eq!(a.mesh().coords, b.mesh().coords);
+}
+
+#[test]
+fn a_thread_count_above_the_limit_is_refused_and_changes_nothing() {
+    let mut s = session();
+    s.set_threads(2).unwrap();
+    for n in [MAX_THREADS + 1, 1 << 31, usize::MAX] {
+        assert!(matches!(s.set_threads(n), Err(Error::InvalidInput(m)) if m.contains("at most")), "{n}");
+        assert_eq!(s.threads(), 2);
+    }
+    s.set_threads(MAX_THREADS).unwrap();
+    assert_eq!(s.threads(), MAX_THREADS);
 }
 
 /// Leaves every point where it is.

@@ -532,7 +532,10 @@ fn one_call(r: &mut Bytes, slots: &mut [Slot; 2], bases: &[Base], runs: &mut usi
                 // The setters that keep the nodes first: only the last call's
                 // failure is checked against the nodes from before the three.
                 name = "set_threads+condensation+repair+caps";
-                let st = hoc_mesh_set_threads(h, r.int(&[0, 1, 2, -1, c_int::MIN]));
+                // Counts the library accepts are held to 2 (a pool of thousands
+                // of threads only makes the run long); larger ones must be refused.
+                let t = r.int(&[0, 1, 2, -1, c_int::MIN]);
+                let st = hoc_mesh_set_threads(h, if (3..=4096).contains(&t) { 2 } else { t });
                 check("set_threads", st, h);
                 let st = hoc_mesh_set_static_condensation(h, r.int(&[1, 0, 2, -1]));
                 check("set_static_condensation", st, h);

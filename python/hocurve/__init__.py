@@ -289,7 +289,7 @@ class Mesh:
         ``mooney-rivlin``, ... (default by formulation); ``caps`` ``remove``
         or ``keep``; ``solver`` ``auto``, ``direct`` or ``iterative``;
         ``adaptive`` None (by formulation), True or False; ``threads`` 0 for
-        one per core. ``tangent_first``: for a slow projector, the
+        one per core, at most 4096. ``tangent_first``: for a slow projector, the
         optimisation's sliding nodes are projected after each pass and at
         every step only where that is not enough (a fifth to a third of the
         projector calls on parts that need sliding; as valid, the quality

@@ -293,7 +293,7 @@ impl NativeMesh {
             opts.optimize.enabled = optimize;
             opts.optimize.tangent_first = tangent_first;
             hocurve::curve::validate_options(&opts)?;
-            s.set_threads(threads);
+            s.set_threads(threads)?;
             *self.pending.lock().unwrap_or_else(|p| p.into_inner()) = Some(opts);
             Ok(())
         })

@@ -381,7 +381,9 @@ fn curve_whole(
             }
         }
     }
-    whole.set_threads(session.threads());
+    if let Err(e) = whole.set_threads(session.threads()) {
+        return (Err(e), progress);
+    }
     whole.restore_callbacks((Some(Box::new(routed)), progress));
     let mut opts = session.options().clone();
     opts.parallel = lead.parallel();

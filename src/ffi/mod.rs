@@ -1001,17 +1001,18 @@ pub unsafe extern "C" fn hoc_mesh_set_linear_solver(
 }
 
 /// Number of worker threads of this handle's own pool (0 = one per core).
+/// The pool is started in full by the next run, so counts above 4096 are
+/// refused.
 ///
 /// @param[in,out] mesh the handle
-/// @param[in] n_threads ≥ 0
+/// @param[in] n_threads 0 to 4096
 /// @return HOC_OK or HOC_ERROR_INVALID_ARGUMENT
 #[no_mangle]
 pub unsafe extern "C" fn hoc_mesh_set_threads(mesh: *mut HocMesh, n_threads: c_int) -> HocStatus {
     guard(mesh, || {
         let h = handle_mut(mesh)?;
         let n = usize::try_from(n_threads).map_err(|_| arg(format!("n_threads must be >= 0, got {n_threads}")))?;
-        h.session.set_threads(n);
-        Ok(())
+        h.session.set_threads(n).map_err(err)
     })
 }
 
