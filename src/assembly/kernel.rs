@@ -19,11 +19,11 @@ pub struct LinearElasticKernel {
 
 /// Scratch space of one thread.
 pub struct KernelWorkspace {
-    grad: Vec<f64>,
-    a: Mat<f64>,
-    aw: Mat<f64>,
+    /// Aᵀ: per quadrature point (column), the physical gradients of the basis.
+    at: Mat<f64>,
+    /// Aᵀ with each column times its point's weight and det J.
+    awt: Mat<f64>,
     m: Mat<f64>,
-    lap: Vec<f64>,
 }
 
 impl super::ElementKernel for LinearElasticKernel {
@@ -66,13 +66,7 @@ impl LinearElasticKernel {
 
     pub fn workspace(&self) -> KernelWorkspace {
         let (n, d, nq) = (self.cache.n_basis, self.cache.dim, self.cache.n_points());
-        KernelWorkspace {
-            grad: vec![0.0; n * d],
-            a: Mat::zeros(nq, n * d),
-            aw: Mat::zeros(nq, n * d),
-            m: Mat::zeros(n * d, n * d),
-            lap: vec![0.0; n],
-        }
+        KernelWorkspace { at: Mat::zeros(n * d, nq), awt: Mat::zeros(n * d, nq), m: Mat::zeros(n * d, n * d) }
     }
 
     /// Element stiffness into `ke` (row-major, dof (a, i) = a·dim + i) for the
@@ -89,7 +83,7 @@ impl LinearElasticKernel {
     #[inline(always)]
     fn stiffness(&self, xe: &[f64], ke: &mut [f64], ws: &mut KernelWorkspace) -> Result<(), f64> {
         let c = &self.cache;
-        let (n, dim) = (c.n_basis, c.dim);
+        let dim = c.dim;
         for q in 0..c.n_points() {
             let rg = c.grads_at(q);
             let jac = mapping::jacobian(dim, xe, rg);
@@ -97,45 +91,45 @@ impl LinearElasticKernel {
             if det.is_nan() || det <= 0.0 {
                 return Err(det);
             }
-            mapping::physical_gradients_into(dim, rg, &jinv, &mut ws.grad);
+            // Column q of Aᵀ: the gradients, dof (a, i) at a·dim + i.
+            let g = ws.at.col_as_slice_mut(q);
+            mapping::physical_gradients_into(dim, rg, &jinv, g);
             let w = c.weights[q] * det;
-            for i in 0..dim {
-                for a in 0..n {
-                    let g = ws.grad[a * dim + i];
-                    ws.a[(q, i * n + a)] = g;
-                    ws.aw[(q, i * n + a)] = w * g;
-                }
+            for (gw, &g) in ws.awt.col_as_slice_mut(q).iter_mut().zip(&*g) {
+                *gw = w * g;
             }
         }
-        // M = Awᵀ A: M[(i n + a), (j n + b)] = ∫ ∂_i N_a ∂_j N_b.
-        matmul(ws.m.as_mut(), Accum::Replace, ws.aw.as_ref().transpose(), ws.a.as_ref(), 1.0, Par::Seq);
-        // K is symmetric, so the entry of (a i)(b j) is written at row (b j),
-        // column (a i): every inner loop then runs down a column of M.
+        // M = Aw Aᵀ: M[(a i), (b j)] = ∫ ∂_i N_a ∂_j N_b, in the dof order of K.
+        matmul(ws.m.as_mut(), Accum::Replace, ws.awt.as_ref(), ws.at.as_ref().transpose(), 1.0, Par::Seq);
+        match dim {
+            2 => self.stiffness_from_gram::<2>(ke, &ws.m),
+            _ => self.stiffness_from_gram::<3>(ke, &ws.m),
+        }
+        Ok(())
+    }
+
+    /// K from the Gram matrix M, block (a, b) by block: K_(a i)(b j) = λ
+    /// M_(a i)(b j) + μ M_(a j)(b i) + μ δ_ij Σ_k M_(a k)(b k). K is
+    /// symmetric, so block (a, b) is written in rows (b j), columns (a i):
+    /// every read and write then runs down a column of M or a row of K.
+    #[inline(always)]
+    fn stiffness_from_gram<const D: usize>(&self, ke: &mut [f64], m: &Mat<f64>) {
         let (lam, mu) = (self.material.lambda, self.material.mu);
-        let nd = n * dim;
-        let (m, lap) = (&ws.m, &mut ws.lap);
-        for b in 0..n {
-            // lap[a] = ∫ ∇N_a·∇N_b
-            lap.fill(0.0);
-            for k in 0..dim {
-                for (l, v) in lap.iter_mut().zip(&m.col_as_slice(k * n + b)[k * n..][..n]) {
-                    *l += v;
-                }
-            }
-            for j in 0..dim {
-                let row = &mut ke[(b * dim + j) * nd..][..nd];
-                let cj = m.col_as_slice(j * n + b);
-                for i in 0..dim {
-                    let ci = m.col_as_slice(i * n + b);
-                    let (lam_part, mu_part) = (&cj[i * n..][..n], &ci[j * n..][..n]);
-                    let diag = if i == j { mu } else { 0.0 };
-                    for a in 0..n {
-                        row[a * dim + i] = lam * lam_part[a] + mu * mu_part[a] + diag * lap[a];
+        let nd = m.nrows();
+        for (b, rows) in ke.chunks_exact_mut(D * nd).enumerate() {
+            let cols: [&[f64]; D] = std::array::from_fn(|j| m.col_as_slice(b * D + j));
+            for a in 0..nd / D {
+                let mb: [[f64; D]; D] = std::array::from_fn(|i| std::array::from_fn(|j| cols[j][a * D + i]));
+                let lap = (0..D).fold(0.0, |s, k| s + mb[k][k]);
+                for j in 0..D {
+                    let row = &mut rows[j * nd + a * D..][..D];
+                    for i in 0..D {
+                        let diag = if i == j { mu } else { 0.0 };
+                        row[i] = lam * mb[i][j] + mu * mb[j][i] + diag * lap;
                     }
                 }
             }
         }
-        Ok(())
     }
 }
 

@@ -17,6 +17,7 @@
 
 use rayon::prelude::*;
 
+use super::pcg::WithValues;
 use super::SymmetricCsc;
 use crate::{Error, Result, SolverFailure};
 
@@ -41,8 +42,9 @@ pub struct BlockSym32 {
     /// lower triangle (the diagonal block first).
     up: BlockRows,
     /// Strictly lower blocks (I, J < I) of row I, the transposes of upper
-    /// ones (found again at each fill: an index per block would cost 44
-    /// bytes per unknown at p = 4 in 3D).
+    /// ones (found at each fill through the double-precision operator's
+    /// symbolic transpose: an index of its own would cost 44 bytes per
+    /// unknown at p = 4 in 3D).
     lo: BlockRows,
 }
 
@@ -154,9 +156,11 @@ impl BlockSym32 {
         Ok(BlockSym32 { b, n_blocks, up, lo })
     }
 
-    /// Numeric fill from the lower-triangle `values` of a matrix on the pattern
-    /// given to [`Self::try_new`].
-    pub fn update(&mut self, pattern: &SymmetricCsc, values: &[f64]) {
+    /// Numeric fill from the matrix `a` on the pattern given to
+    /// [`Self::try_new`], whose operator is in the same nodal-block layout.
+    pub fn update(&mut self, a: WithValues) {
+        assert_eq!(a.block(), self.b, "the operator's nodal blocks are the copy's");
+        let (pattern, values) = (a.pattern(), a.values());
         let (b, bb) = (self.b, self.b * self.b);
         super::split_by(&mut self.up.val, &self.up.ptr, bb).into_par_iter().enumerate().for_each(|(j, row)| {
             for jj in 0..b {
@@ -177,12 +181,10 @@ impl BlockSym32 {
         });
         let (up, lo_col, ptr) = (&self.up, &self.lo.col, &self.lo.ptr);
         super::split_by(&mut self.lo.val, ptr, bb).into_par_iter().enumerate().for_each(|(i, row)| {
-            for (t, blk) in row.chunks_exact_mut(bb).enumerate() {
-                // Block (I, J) is the transpose of (J, I), in row J of the upper part.
-                let j = lo_col[ptr[i] + t] as usize;
-                let (s, e) = (up.ptr[j], up.ptr[j + 1]);
-                let pos = up.col[s..e].binary_search(&(i as u32)).expect("the transpose is an upper block");
-                let from = &up.val[(s + pos) * bb..][..bb];
+            for ((t, blk), (j, pos)) in row.chunks_exact_mut(bb).enumerate().zip(a.lower_blocks(i)) {
+                // Block (I, J) is the transpose of (J, I), block `pos` of row J of the upper part.
+                debug_assert_eq!(lo_col[ptr[i] + t] as usize, j);
+                let from = &up.val[(up.ptr[j] + pos) * bb..][..bb];
                 for r in 0..b {
                     for c in 0..b {
                         blk[r * b + c] = from[c * b + r];
@@ -264,7 +266,8 @@ mod tests {
         for b in 1..=3 {
             let (pattern, values) = ring(23, b);
             let mut m = BlockSym32::try_new(&pattern, b).unwrap();
-            m.update(&pattern, &values);
+            let op = super::super::pcg::SymmetricOperator::try_new(&pattern, b).unwrap();
+            m.update(op.with(&pattern, &values));
             let x: Vec<f64> = (0..pattern.n).map(|i| (i as f64 * 0.37).sin()).collect();
             let mut y = vec![0.0; pattern.n];
             m.apply_into(&x, &mut y);
