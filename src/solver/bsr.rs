@@ -3,12 +3,18 @@
 //!
 //! The V-cycle makes six of the seven products with the fine matrix in each
 //! PCG iteration ([`super::pmg`]), and those products are memory-bound. Stored
-//! by full block rows of `b × b` blocks (BSR), one `u32` block-column index per
-//! block and `f32` values, a product reads 4.4 bytes per entry, against
-//! 12 or more for the double-precision lower triangle read in place by
-//! [`super::pcg::SymmetricOperator`]. Both triangles are stored: reading the
-//! lower blocks transposed from the upper ones saves 0.4 KB per unknown at
-//! p = 4 in 3D but made the solve 1.55 times slower (scattered reads).
+//! by block rows of `b × b` blocks (BSR), one `u32` block-column index per
+//! block and `f32` values, a product reads 4.4 bytes per entry, against 12 or
+//! more for the double-precision lower triangle read in place by
+//! [`super::pcg::SymmetricOperator`]. The rows go in fixed chunks of nodes,
+//! one task each, and only the upper blocks (J, I ≥ J) are stored, read once:
+//! each adds to row J and, transposed, to row I when I lies in J's chunk.
+//! The blocks whose row I lies in a later chunk are also stored transposed,
+//! by row I, for that chunk to stream: at p = 4, 25 % of the off-diagonal
+//! blocks on the sphere cavity of bench/compare_gmsh.sh, 36 % on the
+//! built-in million-unknown mesh. Both triangles in full, as before, took
+//! 0.3 KB more per unknown there; the upper blocks alone, the crossing ones
+//! gathered from them, made its solve 15 % slower.
 //! Single precision is enough for a preconditioner (its entries are relative
 //! perturbations of 6e-8 of the matrix); PCG itself multiplies in double.
 //!
@@ -17,7 +23,6 @@
 
 use rayon::prelude::*;
 
-use super::pcg::WithValues;
 use super::SymmetricCsc;
 use crate::{Error, Result, SolverFailure};
 
@@ -27,25 +32,29 @@ pub trait Operator: Sync {
     fn apply_into(&self, x: &[f64], y: &mut [f64]);
 }
 
-/// Block rows per parallel task.
-const CHUNK_ROWS: usize = 512;
+/// Node rows per chunk of a product (one parallel task; the chunks do not
+/// depend on the number of threads, so neither do the sums).
+const CHUNK_NODES: usize = 4096;
 
-/// A symmetric matrix stored by full block rows in single precision: per
-/// block row, its strictly lower blocks and its upper blocks (diagonal
-/// included), each part in compressed block rows.
+/// A symmetric matrix stored by its upper block rows in single precision,
+/// with the blocks that reach across chunks indexed from their lower side.
 #[derive(Debug, Clone)]
 pub struct BlockSym32 {
     /// Block size.
     b: usize,
     n_blocks: usize,
+    /// Node rows per chunk of a product.
+    chunk: usize,
     /// Upper blocks (J, I ≥ J) of row J, in the order of column J·b of the
     /// lower triangle (the diagonal block first).
     up: BlockRows,
-    /// Strictly lower blocks (I, J < I) of row I, the transposes of upper
-    /// ones (found at each fill through the double-precision operator's
-    /// symbolic transpose: an index of its own would cost 44 bytes per
-    /// unknown at p = 4 in 3D).
-    lo: BlockRows,
+    /// Per node row I, the blocks (J, I) of `up` whose row J lies in an
+    /// earlier chunk than I: J and the block's index in `up` (for the
+    /// fill), J ascending.
+    cross_ptr: Vec<usize>,
+    cross: Vec<(u32, u32)>,
+    /// Those blocks transposed, `b²` values each, in the order of `cross`.
+    cross_val: Vec<f32>,
 }
 
 #[derive(Debug, Clone, Default)]
@@ -66,20 +75,6 @@ impl BlockRows {
             ptr.push(col.len());
         }
         BlockRows { val: vec![0.0; col.len() * bb], ptr, col }
-    }
-
-    #[inline(always)]
-    fn add_row<const B: usize>(&self, i: usize, x: &[f64], acc: &mut [f64; B]) {
-        for k in self.ptr[i]..self.ptr[i + 1] {
-            let j = self.col[k] as usize;
-            let blk = &self.val[k * B * B..(k + 1) * B * B];
-            let xj = &x[j * B..(j + 1) * B];
-            for r in 0..B {
-                for c in 0..B {
-                    acc[r] += blk[r * B + c] as f64 * xj[c];
-                }
-            }
-        }
     }
 }
 
@@ -136,31 +131,46 @@ impl BlockSym32 {
     /// triangle pattern ([`nodal_blocks`] of the pattern and `b`), read
     /// once for this and the double-precision operator.
     pub fn from_nodal_blocks(upper: &[Vec<u32>], b: usize) -> Result<BlockSym32> {
+        BlockSym32::with_chunks(upper, b, CHUNK_NODES)
+    }
+
+    /// [`Self::from_nodal_blocks`] with products in chunks of `chunk` node rows.
+    fn with_chunks(upper: &[Vec<u32>], b: usize, chunk: usize) -> Result<BlockSym32> {
         let n_blocks = upper.len();
-        // Lower block rows: transpose of the strictly upper part.
-        let mut lower: Vec<Vec<u32>> = vec![Vec::new(); n_blocks];
-        for (j, nodes) in upper.iter().enumerate() {
-            for &i in &nodes[1..] {
-                lower[i as usize].push(j as u32);
-            }
-        }
-        let bb = b * b;
-        let up = BlockRows::from_lists(upper, bb);
-        let lo = BlockRows::from_lists(&lower, bb);
+        let up = BlockRows::from_lists(upper, b * b);
         if up.col.len() >= u32::MAX as usize {
             return Err(Error::solver(
                 SolverFailure::Setup,
                 format!("block matrix: {} blocks do not fit 32-bit indices", up.col.len()),
             ));
         }
-        Ok(BlockSym32 { b, n_blocks, up, lo })
+        // Blocks (J, I) with I past the end of J's chunk, listed by I.
+        let past = |j: usize| upper[j][1..].iter().enumerate().filter(move |&(_, &i)| i as usize >= (j / chunk + 1) * chunk);
+        let mut cross_ptr = vec![0usize; n_blocks + 1];
+        for j in 0..n_blocks {
+            for (_, &i) in past(j) {
+                cross_ptr[i as usize + 1] += 1;
+            }
+        }
+        for i in 0..n_blocks {
+            cross_ptr[i + 1] += cross_ptr[i];
+        }
+        let mut fill = cross_ptr.clone();
+        let mut cross = vec![(0u32, 0u32); cross_ptr[n_blocks]];
+        for j in 0..n_blocks {
+            for (t, &i) in past(j) {
+                let k = &mut fill[i as usize];
+                cross[*k] = (j as u32, (up.ptr[j] + 1 + t) as u32);
+                *k += 1;
+            }
+        }
+        let cross_val = vec![0.0; cross.len() * b * b];
+        Ok(BlockSym32 { b, n_blocks, chunk, up, cross_ptr, cross, cross_val })
     }
 
-    /// Numeric fill from the matrix `a` on the pattern given to
-    /// [`Self::try_new`], whose operator is in the same nodal-block layout.
-    pub fn update(&mut self, a: WithValues) {
-        assert_eq!(a.block(), self.b, "the operator's nodal blocks are the copy's");
-        let (pattern, values) = (a.pattern(), a.values());
+    /// Numeric fill from the lower-triangle `values` of a matrix on the pattern
+    /// given to [`Self::from_nodal_blocks`].
+    pub fn update(&mut self, pattern: &SymmetricCsc, values: &[f64]) {
         let (b, bb) = (self.b, self.b * self.b);
         super::split_by(&mut self.up.val, &self.up.ptr, bb).into_par_iter().enumerate().for_each(|(j, row)| {
             for jj in 0..b {
@@ -179,16 +189,12 @@ impl BlockSym32 {
                 }
             }
         });
-        let (up, lo_col, ptr) = (&self.up, &self.lo.col, &self.lo.ptr);
-        super::split_by(&mut self.lo.val, ptr, bb).into_par_iter().enumerate().for_each(|(i, row)| {
-            for ((t, blk), (j, pos)) in row.chunks_exact_mut(bb).enumerate().zip(a.lower_blocks(i)) {
-                // Block (I, J) is the transpose of (J, I), block `pos` of row J of the upper part.
-                debug_assert_eq!(lo_col[ptr[i] + t] as usize, j);
-                let from = &up.val[(up.ptr[j] + pos) * bb..][..bb];
-                for r in 0..b {
-                    for c in 0..b {
-                        blk[r * b + c] = from[c * b + r];
-                    }
+        let (up, cross) = (&self.up.val, &self.cross);
+        self.cross_val.par_chunks_mut(bb).zip(cross.par_iter()).for_each(|(blk, &(_, k))| {
+            let from = &up[k as usize * bb..][..bb];
+            for r in 0..b {
+                for c in 0..b {
+                    blk[r * b + c] = from[c * b + r];
                 }
             }
         });
@@ -197,27 +203,64 @@ impl BlockSym32 {
     /// Bytes held (indices and values).
     #[cfg(test)]
     pub fn memory_bytes(&self) -> usize {
-        let part = |p: &BlockRows| p.ptr.len() * 8 + p.col.len() * 4 + p.val.len() * 4;
-        part(&self.up) + part(&self.lo)
+        let up = self.up.ptr.len() * 8 + self.up.col.len() * 4 + self.up.val.len() * 4;
+        up + self.cross_ptr.len() * 8 + self.cross.len() * 8 + self.cross_val.len() * 4
     }
 
     fn apply_block<const B: usize>(&self, x: &[f64], y: &mut [f64]) {
-        y.par_chunks_mut(CHUNK_ROWS * B).enumerate().for_each(|(t, yc)| {
+        y.par_chunks_mut(self.chunk * B).enumerate().for_each(|(t, yc)| {
             crate::linalg::with_avx2(
                 #[inline(always)]
-                || self.rows::<B>(t * CHUNK_ROWS, x, yc),
+                || self.chunk_rows::<B>(t * self.chunk, x, yc),
             )
         });
     }
 
-    /// y of the block rows from `first` on (as many as `y` holds).
+    /// y of the chunk of node rows from `first` on (as many as `y` holds).
     #[inline(always)]
-    fn rows<const B: usize>(&self, first: usize, x: &[f64], y: &mut [f64]) {
-        for (di, yb) in y.chunks_exact_mut(B).enumerate() {
+    fn chunk_rows<const B: usize>(&self, first: usize, x: &[f64], y: &mut [f64]) {
+        let end = first + y.len() / B;
+        let (up, bb) = (&self.up, B * B);
+        // The blocks of earlier chunks' rows, transposed.
+        for (di, yi) in y.chunks_exact_mut(B).enumerate() {
+            let i = first + di;
             let mut acc = [0.0f64; B];
-            self.lo.add_row::<B>(first + di, x, &mut acc);
-            self.up.add_row::<B>(first + di, x, &mut acc);
-            yb.copy_from_slice(&acc);
+            for k in self.cross_ptr[i]..self.cross_ptr[i + 1] {
+                let (blk, xj) = (&self.cross_val[k * bb..][..bb], &x[self.cross[k].0 as usize * B..][..B]);
+                for r in 0..B {
+                    for c in 0..B {
+                        acc[r] += blk[r * B + c] as f64 * xj[c];
+                    }
+                }
+            }
+            yi.copy_from_slice(&acc);
+        }
+        // The chunk's own rows: each block to its row and, transposed, to
+        // the row of its column when that lies in the chunk.
+        for j in first..end {
+            let xj: [f64; B] = std::array::from_fn(|r| x[j * B + r]);
+            let mut acc = [0.0f64; B];
+            for k in up.ptr[j]..up.ptr[j + 1] {
+                let i = up.col[k] as usize;
+                let blk = &up.val[k * bb..][..bb];
+                let xi = &x[i * B..][..B];
+                for r in 0..B {
+                    for c in 0..B {
+                        acc[r] += blk[r * B + c] as f64 * xi[c];
+                    }
+                }
+                if i != j && i < end {
+                    let yi = &mut y[(i - first) * B..][..B];
+                    for c in 0..B {
+                        for r in 0..B {
+                            yi[c] += blk[r * B + c] as f64 * xj[r];
+                        }
+                    }
+                }
+            }
+            for (v, a) in y[(j - first) * B..][..B].iter_mut().zip(acc) {
+                *v += a;
+            }
         }
     }
 }
@@ -265,26 +308,32 @@ mod tests {
     fn product_matches_the_double_precision_lower_triangle() {
         for b in 1..=3 {
             let (pattern, values) = ring(23, b);
-            let mut m = BlockSym32::try_new(&pattern, b).unwrap();
-            let op = super::super::pcg::SymmetricOperator::try_new(&pattern, b).unwrap();
-            m.update(op.with(&pattern, &values));
             let x: Vec<f64> = (0..pattern.n).map(|i| (i as f64 * 0.37).sin()).collect();
-            let mut y = vec![0.0; pattern.n];
-            m.apply_into(&x, &mut y);
             let want = pattern.sym_matvec(&values, &x);
             let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-            for (p, q) in y.iter().zip(&want) {
-                assert!((p - q).abs() < 1e-6 * scale, "b = {b}: {p} vs {q}");
+            // One chunk, and chunks that blocks cross (the ring couples node
+            // 0 with 22, and each node with the next 1, 2 and 7).
+            for chunk in [CHUNK_NODES, 5, 1] {
+                let mut m = BlockSym32::with_chunks(&nodal_blocks(&pattern, b).unwrap(), b, chunk).unwrap();
+                m.update(&pattern, &values);
+                assert_eq!(m.cross.is_empty(), chunk == CHUNK_NODES, "b = {b}, chunk {chunk}");
+                let mut y = vec![0.0; pattern.n];
+                m.apply_into(&x, &mut y);
+                for (p, q) in y.iter().zip(&want) {
+                    assert!((p - q).abs() < 1e-6 * scale, "b = {b}, chunk {chunk}: {p} vs {q}");
+                }
+                assert!(m.memory_bytes() > 0);
+                // Bitwise the same with and without the AVX2 copy of the loop.
+                let mut portable = vec![0.0; pattern.n];
+                for (t, yc) in portable.chunks_mut(chunk * b).enumerate() {
+                    match b {
+                        1 => m.chunk_rows::<1>(t * chunk, &x, yc),
+                        2 => m.chunk_rows::<2>(t * chunk, &x, yc),
+                        _ => m.chunk_rows::<3>(t * chunk, &x, yc),
+                    }
+                }
+                assert!(y.iter().zip(&portable).all(|(p, q)| p.to_bits() == q.to_bits()), "b = {b}, chunk {chunk}");
             }
-            assert!(m.memory_bytes() > 0);
-            // Bitwise the same with and without the AVX2 copy of the loop.
-            let mut portable = vec![0.0; pattern.n];
-            match b {
-                1 => m.rows::<1>(0, &x, &mut portable),
-                2 => m.rows::<2>(0, &x, &mut portable),
-                _ => m.rows::<3>(0, &x, &mut portable),
-            }
-            assert!(y.iter().zip(&portable).all(|(p, q)| p.to_bits() == q.to_bits()), "b = {b}");
         }
     }
 

@@ -370,7 +370,7 @@ impl IterativeSolver {
         let fine: &dyn Operator = match (&mut self.fine32, mode) {
             (Some(f), Mode::Fast) => {
                 if kept.is_none() {
-                    f.update(exact);
+                    f.update(pattern, values);
                 }
                 f
             }

@@ -153,15 +153,6 @@ impl<'a> WithValues<'a> {
         self.op.b
     }
 
-    /// The strictly lower blocks (I, J) of node row `node`, J ascending: each
-    /// J and the index of node I in node J's list of coupled nodes (J
-    /// first: [`super::bsr::nodal_blocks`]).
-    pub fn lower_blocks(&self, node: usize) -> impl Iterator<Item = (usize, usize)> + 'a {
-        let op = self.op;
-        let k = op.lower_ptr[node]..op.lower_ptr[node + 1];
-        op.lower_col[k.clone()].iter().zip(&op.lower_off[k]).map(move |(&j, &off)| (j as usize, off as usize / op.b))
-    }
-
     /// Each `B`×`B` block (S, A(R, S)) of node row `node`, S ascending
     /// (`B` = [`Self::block`]).
     #[inline]
