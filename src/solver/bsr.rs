@@ -37,7 +37,8 @@ pub trait Operator: Sync {
 const CHUNK_NODES: usize = 4096;
 
 /// A symmetric matrix stored by its upper block rows in single precision,
-/// with the blocks that reach across chunks indexed from their lower side.
+/// the blocks that reach across chunks a second time, transposed, by the
+/// row of their column.
 #[derive(Debug, Clone)]
 pub struct BlockSym32 {
     /// Block size.
