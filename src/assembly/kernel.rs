@@ -23,6 +23,7 @@ pub struct KernelWorkspace {
     at: Mat<f64>,
     /// Aᵀ with each column times its point's weight and det J.
     awt: Mat<f64>,
+    /// The Gram matrix Aw Aᵀ, dofs in K's order.
     m: Mat<f64>,
 }
 
