@@ -96,16 +96,22 @@ fn condense(
     let n = ni + nb;
     let (w, g) = keep.split_at_mut(ni * nb);
     factor_interior(ii, ke, n, ws)?;
+    // The native node order puts the interior nodes last: the boundary dofs
+    // are then 0..nb, and rows of K_IB and K_BB are contiguous slices.
+    let prefix = bb.iter().enumerate().all(|(k, &c)| k == c);
     // Right-hand sides in the pivoted row order: K_IB and f_I = −re_I.
     for (i, &pi) in ws.perm.iter().enumerate() {
         let r = ii[pi];
-        for (b, &c) in bb.iter().enumerate() {
-            w[i * nb + b] = ke[r * n + c];
+        let wi = &mut w[i * nb..(i + 1) * nb];
+        if prefix {
+            wi.copy_from_slice(&ke[r * n..r * n + nb]);
+        } else {
+            wi.iter_mut().zip(bb).for_each(|(x, &c)| *x = ke[r * n + c]);
         }
         g[i] = re.as_ref().map_or(0.0, |re| -re[r]);
     }
     substitute(&ws.lu, ni, nb, w, g);
-    schur_update(split, ke, re, w, g, ws);
+    schur_update(split, prefix, ke, re, w, g, ws);
     Ok(())
 }
 
@@ -176,10 +182,12 @@ fn substitute(lu: &[f64], ni: usize, nb: usize, w: &mut [f64], g: &mut [f64]) {
     }
 }
 
-/// K_BB −= K_BI W and re_B += K_BI g, in place in `ke` and `re`.
+/// K_BB −= K_BI W and re_B += K_BI g, in place in `ke` and `re`; `prefix`:
+/// the boundary dofs are 0..|B|.
 #[inline(always)]
 fn schur_update(
     split: &LocalSplit,
+    prefix: bool,
     ke: &mut [f64],
     mut re: Option<&mut [f64]>,
     w: &[f64],
@@ -202,8 +210,10 @@ fn schur_update(
                 *s += k * x;
             }
         }
-        for (&c, s) in bb.iter().zip(&ws.row) {
-            row[c] -= s;
+        if prefix {
+            row[..nb].iter_mut().zip(&ws.row).for_each(|(x, s)| *x -= s);
+        } else {
+            bb.iter().zip(&ws.row).for_each(|(&c, s)| row[c] -= s);
         }
         if let Some(re) = re.as_deref_mut() {
             re[r] += kbi.iter().zip(g.iter()).map(|(k, gi)| k * gi).sum::<f64>();
@@ -378,6 +388,34 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn boundary_dofs_first_condense_as_the_same_dofs_scattered() {
+        // The native order (interior dofs last) takes the contiguous path;
+        // the same matrix with its dofs scattered takes the indexed one.
+        let mut seed = 11;
+        let n = 10;
+        let scattered = LocalSplit { interior: vec![2, 5, 9], boundary: vec![0, 1, 3, 4, 6, 7, 8] };
+        let order: Vec<usize> = scattered.boundary.iter().chain(&scattered.interior).copied().collect();
+        let native = LocalSplit { interior: vec![7, 8, 9], boundary: (0..7).collect() };
+        let k = spd(n, &mut seed);
+        let re: Vec<f64> = (0..n).map(|_| lcg(&mut seed)).collect();
+        let (mut ks, mut rs) = (k.clone(), re.clone());
+        let mut kn: Vec<f64> = (0..n * n).map(|e| k[order[e / n] * n + order[e % n]]).collect();
+        let mut rn: Vec<f64> = order.iter().map(|&d| re[d]).collect();
+        let (mut keep_s, mut keep_n) = (vec![0.0; scattered.stride()], vec![0.0; native.stride()]);
+        let ws = &mut CondenseWorkspace::default();
+        condense_element(&scattered, &mut ks, Some(&mut rs), &mut keep_s, ws).unwrap();
+        condense_element(&native, &mut kn, Some(&mut rn), &mut keep_n, ws).unwrap();
+        assert_eq!(keep_s, keep_n);
+        for (b, &r) in scattered.boundary.iter().enumerate() {
+            assert_eq!(rs[r], rn[b]);
+            for (c, &s) in scattered.boundary.iter().enumerate() {
+                assert_eq!(ks[r * n + s], kn[b * n + c], "Schur complement ({b}, {c})");
+            }
+        }
+        assert_ne!(kn[0], k[0]);
     }
 
     #[test]

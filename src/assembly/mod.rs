@@ -489,20 +489,34 @@ impl Target<'_> {
     /// from the layout of [`DofMap::pattern`] (column (n, j) lists node n's
     /// components j.. then each later node's components in order, so the
     /// block of node m > n sits j places earlier in column (n, j) than in
-    /// column (n, 0)).
+    /// column (n, 0)). `slots` is scratch space.
     #[inline]
-    fn add_cell(&self, cell: &[usize], offsets: &[u32], ke: &[f64], b: &[f64]) {
+    fn add_cell(&self, cell: &[usize], offsets: &[u32], ke: &[f64], b: &[f64], slots: &mut CellSlots) {
         let (dofs, pattern, dim) = (self.dofs, self.pattern, self.dofs.dim);
         let ndof_e = cell.len() * dim;
-        for (ra, &na) in cell.iter().enumerate() {
-            let Some(r0) = dofs.system_row(na * dim) else { continue }; // prescribed, or condensed
-            for (cb, &nb) in cell.iter().enumerate() {
-                let Some(s0) = dofs.system_row(nb * dim).filter(|&s0| r0 >= s0) else { continue };
+        // Each node's system row (usize::MAX when prescribed or condensed,
+        // which no row is below) and the starts of its columns.
+        let CellSlots { rows, starts } = slots;
+        rows.clear();
+        starts.clear();
+        for &n in cell {
+            let row = dofs.system_row(n * dim);
+            rows.push(row.unwrap_or(usize::MAX));
+            starts.extend((0..dim).map(|j| row.map_or(0, |r| pattern.col_ptr[r + j])));
+        }
+        for (ra, &r0) in rows.iter().enumerate() {
+            if r0 == usize::MAX {
+                continue;
+            }
+            for (cb, &s0) in rows.iter().enumerate() {
+                if s0 > r0 {
+                    continue;
+                }
                 // Offset of row (na, 0) within column (nb, 0).
-                let offset = if na == nb { 0 } else { offsets[pair_index(ra, cb)] as usize };
+                let offset = if ra == cb { 0 } else { offsets[pair_index(ra, cb)] as usize };
                 for j in 0..dim {
-                    let start = pattern.col_ptr[s0 + j] + offset - j;
-                    for i in if na == nb { j..dim } else { 0..dim } {
+                    let start = starts[cb * dim + j] + offset - j;
+                    for i in if ra == cb { j..dim } else { 0..dim } {
                         debug_assert_eq!(pattern.row_idx[start + i] as usize, r0 + i);
                         add(&self.values[start + i], ke[(ra * dim + i) * ndof_e + cb * dim + j]);
                     }
@@ -515,6 +529,14 @@ impl Target<'_> {
             }
         }
     }
+}
+
+/// Scratch space of [`Target::add_cell`]: per node of the cell, its system
+/// row and the starts of its columns in the pattern.
+#[derive(Debug, Default)]
+struct CellSlots {
+    rows: Vec<usize>,
+    starts: Vec<usize>,
 }
 
 /// The linear system of one mesh and everything that assembles it: the dof
@@ -629,10 +651,10 @@ impl System {
         let interior_sq = zeroed_atomics(&mut self.interior_sq, if measure { mesh.n_cells() } else { 0 });
         let init = || {
             let buffers = (vec![0.0; ndof_e * ndof_e], vec![0.0; ndof_e], vec![0.0; ndof_e], vec![0.0; stride]);
-            (buffers, vec![0.0; ndof_e], kernel.workspace(), CondenseWorkspace::default())
+            (buffers, vec![0.0; ndof_e], kernel.workspace(), CondenseWorkspace::default(), CellSlots::default())
         };
-        type Scratch<W> = ((Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>), Vec<f64>, W, CondenseWorkspace);
-        let one_cell = |((ke, re, xe, kept), b, ws, cws): &mut Scratch<K::Workspace>, c: usize| -> Result<()> {
+        type Scratch<W> = ((Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>), Vec<f64>, W, CondenseWorkspace, CellSlots);
+        let one_cell = |((ke, re, xe, kept), b, ws, cws, slots): &mut Scratch<K::Workspace>, c: usize| -> Result<()> {
                     let cell = mesh.cell(c);
                     for (a, &n) in cell.iter().enumerate() {
                         xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
@@ -662,7 +684,7 @@ impl System {
                         }
                     }
                     element_rhs(cell, dim, dofs, ke, residual.then_some(&re[..]), prescribed, b);
-                    target.add_cell(cell, self.plan.cell_offsets(c), ke, b);
+                    target.add_cell(cell, self.plan.cell_offsets(c), ke, b, slots);
                     Ok(())
         };
         for group in &self.plan.colors {
