@@ -1,7 +1,5 @@
 //! Element kernels: values computed at the quadrature points of one element.
 
-use faer::linalg::matmul::matmul;
-use faer::{Accum, Mat, Par};
 
 use crate::linalg;
 use crate::mapping;
@@ -17,15 +15,23 @@ pub struct LinearElasticKernel {
     pub material: LinearElastic,
 }
 
-/// Scratch space of one thread.
+/// Scratch space of one thread. The dofs are padded to `ld`, a multiple of
+/// [`TILE_ROWS`], with zeros that no product reads back.
 pub struct KernelWorkspace {
-    /// Aᵀ: per quadrature point (column), the physical gradients of the basis.
-    at: Mat<f64>,
-    /// Aᵀ with each column times its point's weight and det J.
-    awt: Mat<f64>,
-    /// The Gram matrix Aw Aᵀ, dofs in K's order.
-    m: Mat<f64>,
+    ld: usize,
+    /// Aᵀ: per quadrature point, the physical gradients of the basis, dof
+    /// (a, i) at a·dim + i (`ld` values a point).
+    at: Vec<f64>,
+    /// Aᵀ with each point's gradients times its weight and det J.
+    awt: Vec<f64>,
+    /// The Gram matrix Aw Aᵀ by columns (`ld` values each), dofs in K's
+    /// order; its lower triangle is computed, and tiles across the diagonal.
+    m: Vec<f64>,
 }
+
+/// Rows and columns of M computed together: 8 × 4 sums in registers.
+const TILE_ROWS: usize = 8;
+const TILE_COLS: usize = 4;
 
 impl super::ElementKernel for LinearElasticKernel {
     type Workspace = KernelWorkspace;
@@ -67,7 +73,8 @@ impl LinearElasticKernel {
 
     pub fn workspace(&self) -> KernelWorkspace {
         let (n, d, nq) = (self.cache.n_basis, self.cache.dim, self.cache.n_points());
-        KernelWorkspace { at: Mat::zeros(n * d, nq), awt: Mat::zeros(n * d, nq), m: Mat::zeros(n * d, n * d) }
+        let ld = (n * d).div_ceil(TILE_ROWS) * TILE_ROWS;
+        KernelWorkspace { ld, at: vec![0.0; ld * nq], awt: vec![0.0; ld * nq], m: vec![0.0; ld * ld] }
     }
 
     /// Element stiffness into `ke` (row-major, dof (a, i) = a·dim + i) for the
@@ -84,51 +91,89 @@ impl LinearElasticKernel {
     #[inline(always)]
     fn stiffness(&self, xe: &[f64], ke: &mut [f64], ws: &mut KernelWorkspace) -> Result<(), f64> {
         let c = &self.cache;
-        let dim = c.dim;
-        for q in 0..c.n_points() {
+        let (dim, ld, nq) = (c.dim, ws.ld, c.n_points());
+        let nd = c.n_basis * dim;
+        for q in 0..nq {
             let rg = c.grads_at(q);
             let jac = mapping::jacobian(dim, xe, rg);
             let (jinv, det) = linalg::inverse(dim, &jac);
             if det.is_nan() || det <= 0.0 {
                 return Err(det);
             }
-            // Column q of Aᵀ: the gradients, dof (a, i) at a·dim + i.
-            let g = ws.at.col_as_slice_mut(q);
+            let g = &mut ws.at[q * ld..q * ld + nd];
             mapping::physical_gradients_into(dim, rg, &jinv, g);
             let w = c.weights[q] * det;
-            for (gw, &g) in ws.awt.col_as_slice_mut(q).iter_mut().zip(&*g) {
+            for (gw, &g) in ws.awt[q * ld..q * ld + nd].iter_mut().zip(&*g) {
                 *gw = w * g;
             }
         }
         // M = Aw Aᵀ: M[(a i), (b j)] = ∫ ∂_i N_a ∂_j N_b, in the dof order of K.
-        matmul(ws.m.as_mut(), Accum::Replace, ws.awt.as_ref(), ws.at.as_ref().transpose(), 1.0, Par::Seq);
+        gram_lower(nd, nq, ld, &ws.awt, &ws.at, &mut ws.m);
         match dim {
-            2 => self.stiffness_from_gram::<2>(ke, &ws.m),
-            _ => self.stiffness_from_gram::<3>(ke, &ws.m),
+            2 => self.stiffness_from_gram::<2>(ke, &ws.m, ld),
+            _ => self.stiffness_from_gram::<3>(ke, &ws.m, ld),
         }
         Ok(())
     }
 
-    /// K from the Gram matrix M, block (a, b) by block: K_(a i)(b j) = λ
-    /// M_(a i)(b j) + μ M_(a j)(b i) + μ δ_ij Σ_k M_(a k)(b k). K is
-    /// symmetric, so block (a, b) is written in rows (b j), columns (a i):
-    /// every read and write then runs down a column of M or a row of K.
+    /// K from the lower triangle of the Gram matrix M (columns of `ld`
+    /// values), block (a, b) by block for a ≥ b: K_(a i)(b j) =
+    /// λ M_(a i)(b j) + μ M_(a j)(b i) + μ δ_ij Σ_k M_(a k)(b k). Block
+    /// (a, b) is written in rows (b j), columns (a i), where reads run down
+    /// a column of M and writes along a row of K; then the blocks below the
+    /// diagonal are copied from their transposes, so K is exactly symmetric.
     #[inline(always)]
-    fn stiffness_from_gram<const D: usize>(&self, ke: &mut [f64], m: &Mat<f64>) {
+    fn stiffness_from_gram<const D: usize>(&self, ke: &mut [f64], m: &[f64], ld: usize) {
         let (lam, mu) = (self.material.lambda, self.material.mu);
-        let nd = m.nrows();
+        let nd = ke.len().isqrt();
+        let block = |mb: [[f64; D]; D], j: usize| -> [f64; D] {
+            let lap = (0..D).fold(0.0, |s, k| s + mb[k][k]);
+            std::array::from_fn(|i| lam * mb[i][j] + mu * mb[j][i] + if i == j { mu * lap } else { 0.0 })
+        };
         for (b, rows) in ke.chunks_exact_mut(D * nd).enumerate() {
-            let cols: [&[f64]; D] = std::array::from_fn(|j| m.col_as_slice(b * D + j));
-            for a in 0..nd / D {
+            let cols: [&[f64]; D] = std::array::from_fn(|j| &m[(b * D + j) * ld..(b * D + j + 1) * ld]);
+            // The diagonal block: its upper entries from the lower ones.
+            let mb: [[f64; D]; D] =
+                std::array::from_fn(|i| std::array::from_fn(|j| cols[i.min(j)][b * D + i.max(j)]));
+            for j in 0..D {
+                rows[j * nd + b * D..][..D].copy_from_slice(&block(mb, j));
+            }
+            for a in b + 1..nd / D {
                 let mb: [[f64; D]; D] = std::array::from_fn(|i| std::array::from_fn(|j| cols[j][a * D + i]));
-                let lap = (0..D).fold(0.0, |s, k| s + mb[k][k]);
                 for j in 0..D {
-                    let row = &mut rows[j * nd + a * D..][..D];
-                    for i in 0..D {
-                        let diag = if i == j { mu } else { 0.0 };
-                        row[i] = lam * mb[i][j] + mu * mb[j][i] + diag * lap;
+                    rows[j * nd + a * D..][..D].copy_from_slice(&block(mb, j));
+                }
+            }
+        }
+        for r in D..nd {
+            for c in 0..r - r % D {
+                ke[r * nd + c] = ke[c * nd + r];
+            }
+        }
+    }
+}
+
+/// The lower triangle of M = Aw Aᵀ for `nd` dofs and `nq` points (`awt`,
+/// `at`: `ld` values a point), by tiles of [`TILE_ROWS`] × [`TILE_COLS`]
+/// sums kept in registers: those on or below the diagonal, which also cover
+/// some entries above it. M is symmetric, so this is half the products of a
+/// full one.
+#[inline(always)]
+fn gram_lower(nd: usize, nq: usize, ld: usize, awt: &[f64], at: &[f64], m: &mut [f64]) {
+    for c0 in (0..nd).step_by(TILE_COLS) {
+        for r0 in (c0 - c0 % TILE_ROWS..nd).step_by(TILE_ROWS) {
+            let mut acc = [[0.0f64; TILE_ROWS]; TILE_COLS];
+            for q in 0..nq {
+                let a: &[f64; TILE_ROWS] = awt[q * ld + r0..][..TILE_ROWS].try_into().expect("tile rows");
+                let s: &[f64; TILE_COLS] = at[q * ld + c0..][..TILE_COLS].try_into().expect("tile columns");
+                for (acc, &s) in acc.iter_mut().zip(s) {
+                    for (x, &a) in acc.iter_mut().zip(a) {
+                        *x += a * s;
                     }
                 }
+            }
+            for (k, acc) in acc.iter().enumerate() {
+                m[(c0 + k) * ld + r0..][..TILE_ROWS].copy_from_slice(acc);
             }
         }
     }
