@@ -1,6 +1,5 @@
 //! Element kernels: values computed at the quadrature points of one element.
 
-
 use crate::linalg;
 use crate::mapping;
 use crate::mapping::ElementCache;
@@ -242,6 +241,42 @@ mod tests {
                         assert!(f.abs() < 1e-10 * scale, "{simplex:?} p={p}: K·rigid = {f:e}");
                     }
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn element_stiffness_is_the_integral_summed_point_by_point() {
+        // Every order 1..6 in 2D and 3D: dof counts on and off the 8 × 4
+        // tiles of the Gram product, against the integrand of
+        // K_(a i)(b j) summed directly over the quadrature points.
+        for simplex in [Simplex::Tri, Simplex::Tet] {
+            for p in 1..=6 {
+                let (k, xe) = curved_element(simplex, p);
+                let (c, dim, nd) = (&k.cache, simplex.dim(), xe.len());
+                let mut ke = vec![0.0; nd * nd];
+                k.stiffness_into(&xe, &mut ke, &mut k.workspace()).unwrap();
+                let (lam, mu) = (k.material.lambda, k.material.mu);
+                let mut want = vec![0.0; nd * nd];
+                let mut g = vec![0.0; nd];
+                for q in 0..c.n_points() {
+                    let jac = mapping::jacobian(dim, &xe, c.grads_at(q));
+                    let (jinv, det) = linalg::inverse(dim, &jac);
+                    mapping::physical_gradients_into(dim, c.grads_at(q), &jinv, &mut g);
+                    let w = c.weights[q] * det;
+                    for (r, s) in (0..nd).flat_map(|r| (0..nd).map(move |s| (r, s))) {
+                        let (a, i, b, j) = (r / dim, r % dim, s / dim, s % dim);
+                        let dot: f64 = (0..dim).map(|l| g[a * dim + l] * g[b * dim + l]).sum();
+                        let delta = if i == j { dot } else { 0.0 };
+                        want[r * nd + s] +=
+                            w * (lam * g[a * dim + i] * g[b * dim + j] + mu * g[a * dim + j] * g[b * dim + i] + mu * delta);
+                    }
+                }
+                let scale = want.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                for (e, (x, y)) in ke.iter().zip(&want).enumerate() {
+                    assert!((x - y).abs() < 1e-12 * scale, "{simplex:?} p = {p}, entry {e}: {x} against {y}");
+                }
+                assert!(ke.iter().enumerate().all(|(e, x)| x.to_bits() == ke[(e % nd) * nd + e / nd].to_bits()));
             }
         }
     }
