@@ -20,6 +20,7 @@ mod iterative;
 mod lines;
 mod lu;
 pub(crate) mod metis;
+mod simd;
 pub use metis::partition;
 
 pub(crate) use crate::sparse::split_by;
