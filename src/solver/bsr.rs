@@ -349,6 +349,10 @@ mod avx2 {
     use super::super::simd::{load, load_f32, sum3};
     use super::BlockSym32;
 
+    /// Values ahead (8 KB) that the blocks' stream is prefetched: from
+    /// memory, on a 516,186-unknown matrix, 24–26 ms against 31–36 ms
+    /// without (three interleaved runs, medians of 31 products each).
+    const PF: usize = 2048;
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn chunk_rows_3(m: &BlockSym32, first: usize, x: &[f64], y: &mut [f64]) {
         let nodes = y.len() / 3;
@@ -375,6 +379,8 @@ mod avx2 {
             for k in up.ptr[j]..up.ptr[j + 1] {
                 let i = up.col[k] as usize;
                 let a = &up.val[k * 9..];
+                // A prefetch past the end of the values is harmless (it never faults).
+                _mm_prefetch(a.as_ptr().wrapping_add(PF) as *const i8, _MM_HINT_T0);
                 let a = [load_f32(a), load_f32(&a[3..]), load_f32(&a[6..])];
                 let xi = load(&x[i * 4..]);
                 for r in 0..3 {
