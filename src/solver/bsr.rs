@@ -81,16 +81,43 @@ impl Clone for Padded {
 }
 
 impl Padded {
-    /// `x` padded; the lock is held while the guard lives.
-    pub(super) fn fill<const B: usize, const L: usize>(&self, x: &[f64]) -> std::sync::MutexGuard<'_, Vec<f64>> {
-        let mut padded = self.0.lock().unwrap_or_else(|e| e.into_inner());
-        padded.resize(x.len() / B * L, 0.0);
-        padded.par_chunks_mut(L * PAD_NODES).zip(x.par_chunks(B * PAD_NODES)).for_each(|(p, x)| {
+    /// `x` padded: in the kept vector, or, when that is in use (a product
+    /// on the same operator running at the same time, perhaps on this very
+    /// thread through rayon's work stealing), in a new one.
+    pub(super) fn fill<const B: usize, const L: usize>(&self, x: &[f64]) -> PaddedX<'_> {
+        let mut padded = match self.0.try_lock() {
+            Ok(kept) => PaddedX::Kept(kept),
+            Err(std::sync::TryLockError::Poisoned(e)) => PaddedX::Kept(e.into_inner()),
+            Err(std::sync::TryLockError::WouldBlock) => PaddedX::New(Vec::new()),
+        };
+        let v: &mut Vec<f64> = match &mut padded {
+            PaddedX::Kept(g) => g,
+            PaddedX::New(v) => v,
+        };
+        v.resize(x.len() / B * L, 0.0);
+        v.par_chunks_mut(L * PAD_NODES).zip(x.par_chunks(B * PAD_NODES)).for_each(|(p, x)| {
             for (p, x) in p.chunks_exact_mut(L).zip(x.chunks_exact(B)) {
                 p[..B].copy_from_slice(x);
+                p[B..].fill(0.0);
             }
         });
         padded
+    }
+}
+
+/// A padded copy of x ([`Padded::fill`]).
+pub(super) enum PaddedX<'a> {
+    Kept(std::sync::MutexGuard<'a, Vec<f64>>),
+    New(Vec<f64>),
+}
+
+impl std::ops::Deref for PaddedX<'_> {
+    type Target = [f64];
+    fn deref(&self) -> &[f64] {
+        match self {
+            PaddedX::Kept(g) => g,
+            PaddedX::New(v) => v,
+        }
     }
 }
 
@@ -353,6 +380,7 @@ mod avx2 {
     /// memory, on a 516,186-unknown matrix, 24–26 ms against 31–36 ms
     /// without (three interleaved runs, medians of 31 products each).
     const PF: usize = 2048;
+
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn chunk_rows_3(m: &BlockSym32, first: usize, x: &[f64], y: &mut [f64]) {
         let nodes = y.len() / 3;
@@ -480,6 +508,19 @@ mod tests {
                 assert!(y.iter().zip(&portable).all(|(p, q)| p.to_bits() == q.to_bits()), "b = {b}, chunk {chunk}");
             }
         }
+    }
+
+    #[test]
+    fn x_is_padded_in_a_new_vector_while_the_kept_one_is_in_use() {
+        let x: Vec<f64> = (0..9).map(f64::from).collect();
+        let want = [0.0, 1.0, 2.0, 0.0, 3.0, 4.0, 5.0, 0.0, 6.0, 7.0, 8.0, 0.0];
+        let padded = Padded::default();
+        let first = padded.fill::<3, 4>(&x);
+        let second = padded.fill::<3, 4>(&x);
+        assert!(matches!(first, PaddedX::Kept(_)) && matches!(second, PaddedX::New(_)));
+        assert_eq!((&*first, &*second), (&want[..], &want[..]));
+        drop((first, second));
+        assert!(matches!(padded.fill::<3, 4>(&x[..6]), PaddedX::Kept(v) if v[..] == want[..8]));
     }
 
     #[test]

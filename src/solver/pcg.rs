@@ -358,6 +358,7 @@ mod avx2 {
     /// 516,186-unknown matrix the product took 63–80 ms against 84–93 ms
     /// without (three interleaved runs, medians of 31 products each).
     const PF: usize = 768;
+
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn chunk_3(a: &WithValues, first: usize, x: &[f64], y: &mut [f64]) {
         let (op, cp, ri, values) = (a.op, &a.pattern.col_ptr, &a.pattern.row_idx, a.values);
