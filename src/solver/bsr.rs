@@ -373,7 +373,7 @@ impl BlockSym32 {
 mod avx2 {
     use std::arch::x86_64::*;
 
-    use super::super::simd::{load, load_f32, sum3};
+    use super::super::simd::{add_sums, block, load, load_f32};
     use super::BlockSym32;
 
     /// Values ahead (8 KB) that the blocks' stream is prefetched: from
@@ -396,9 +396,7 @@ mod avx2 {
                     *t = _mm256_add_pd(*t, _mm256_mul_pd(load_f32(&a[r * 3..]), xj));
                 }
             }
-            for r in 0..3 {
-                yl[di * 4 + r] += sum3(t[r]);
-            }
+            add_sums(&mut yl[di * 4..], &t);
         }
         let up = &m.up;
         for j in first..end {
@@ -410,22 +408,10 @@ mod avx2 {
                 // A prefetch past the end of the values is harmless (it never faults).
                 _mm_prefetch(a.as_ptr().wrapping_add(PF) as *const i8, _MM_HINT_T0);
                 let a = [load_f32(a), load_f32(&a[3..]), load_f32(&a[6..])];
-                let xi = load(&x[i * 4..]);
-                for r in 0..3 {
-                    t[r] = _mm256_add_pd(t[r], _mm256_mul_pd(a[r], xi));
-                }
-                if i != j && i < end {
-                    let yi = &mut yl[(i - first) * 4..][..4];
-                    let mut v = load(yi);
-                    for r in 0..3 {
-                        v = _mm256_add_pd(v, _mm256_mul_pd(a[r], xb[r]));
-                    }
-                    _mm256_storeu_pd(yi.as_mut_ptr(), v);
-                }
+                let to = (i != j && i < end).then(|| (&mut yl[(i - first) * 4..], &xb));
+                block(&mut t, &a, load(&x[i * 4..]), to);
             }
-            for r in 0..3 {
-                yl[(j - first) * 4 + r] += sum3(t[r]);
-            }
+            add_sums(&mut yl[(j - first) * 4..], &t);
         }
         for (yi, v) in y.chunks_exact_mut(3).zip(yl.chunks_exact(4)) {
             yi.copy_from_slice(&v[..3]);

@@ -351,7 +351,7 @@ impl<'a> WithValues<'a> {
 mod avx2 {
     use std::arch::x86_64::*;
 
-    use super::super::simd::{load, sum3};
+    use super::super::simd::{add_sums, block, load};
     use super::WithValues;
 
     /// Values ahead (6 KB) that each column's stream is prefetched: on a
@@ -407,22 +407,10 @@ mod avx2 {
                     load(&values[cp[j * 3 + 1] + m * 3 - 1..]),
                     load(&values[cp[j * 3 + 2] + m * 3 - 2..]),
                 ];
-                let xi = load(&x[i * 4..]);
-                for jj in 0..3 {
-                    t[jj] = _mm256_add_pd(t[jj], _mm256_mul_pd(c[jj], xi));
-                }
-                if i < end {
-                    let yi = &mut yl[(i - first) * 4..][..4];
-                    let mut v = load(yi);
-                    for jj in 0..3 {
-                        v = _mm256_add_pd(v, _mm256_mul_pd(c[jj], xb[jj]));
-                    }
-                    _mm256_storeu_pd(yi.as_mut_ptr(), v);
-                }
+                let to = (i < end).then(|| (&mut yl[(i - first) * 4..], &xb));
+                block(&mut t, &c, load(&x[i * 4..]), to);
             }
-            for jj in 0..3 {
-                yl[(j - first) * 4 + jj] += sum3(t[jj]);
-            }
+            add_sums(&mut yl[(j - first) * 4..], &t);
         }
         for (yi, v) in y.chunks_exact_mut(3).zip(yl.chunks_exact(4)) {
             yi.copy_from_slice(&v[..3]);
