@@ -117,36 +117,40 @@ impl LinearElasticKernel {
 
     /// K from the lower triangle of the Gram matrix M (columns of `ld`
     /// values), block (a, b) by block for a ≥ b: K_(a i)(b j) =
-    /// λ M_(a i)(b j) + μ M_(a j)(b i) + μ δ_ij Σ_k M_(a k)(b k). Block
-    /// (a, b) is written in rows (b j), columns (a i), where reads run down
-    /// a column of M and writes along a row of K; then the blocks below the
-    /// diagonal are copied from their transposes, so K is exactly symmetric.
+    /// λ M_(a i)(b j) + μ M_(a j)(b i) + μ δ_ij Σ_k M_(a k)(b k). Each block
+    /// is written twice, in rows (b j), columns (a i), and, below the
+    /// diagonal, transposed in rows (a i), columns (b j): runs of `D` values
+    /// either way, so K is exactly symmetric without a strided pass over it.
     #[inline(always)]
     fn stiffness_from_gram<const D: usize>(&self, ke: &mut [f64], m: &[f64], ld: usize) {
         let (lam, mu) = (self.material.lambda, self.material.mu);
         let nd = ke.len().isqrt();
-        let block = |mb: [[f64; D]; D], j: usize| -> [f64; D] {
+        // kb[j][i] = K_(a i)(b j) from mb[i][j] = M_(a i)(b j).
+        let block = |mb: [[f64; D]; D]| -> [[f64; D]; D] {
             let lap = (0..D).fold(0.0, |s, k| s + mb[k][k]);
-            std::array::from_fn(|i| lam * mb[i][j] + mu * mb[j][i] + if i == j { mu * lap } else { 0.0 })
+            std::array::from_fn(|j| {
+                std::array::from_fn(|i| lam * mb[i][j] + mu * mb[j][i] + if i == j { mu * lap } else { 0.0 })
+            })
         };
-        for (b, rows) in ke.chunks_exact_mut(D * nd).enumerate() {
+        for b in 0..nd / D {
             let cols: [&[f64]; D] = std::array::from_fn(|j| &m[(b * D + j) * ld..(b * D + j + 1) * ld]);
             // The diagonal block: its upper entries from the lower ones.
             let mb: [[f64; D]; D] =
                 std::array::from_fn(|i| std::array::from_fn(|j| cols[i.min(j)][b * D + i.max(j)]));
-            for j in 0..D {
-                rows[j * nd + b * D..][..D].copy_from_slice(&block(mb, j));
+            let kb = block(mb);
+            for (j, kb) in kb.iter().enumerate() {
+                ke[(b * D + j) * nd + b * D..][..D].copy_from_slice(kb);
             }
             for a in b + 1..nd / D {
                 let mb: [[f64; D]; D] = std::array::from_fn(|i| std::array::from_fn(|j| cols[j][a * D + i]));
-                for j in 0..D {
-                    rows[j * nd + a * D..][..D].copy_from_slice(&block(mb, j));
+                let kb = block(mb);
+                for (j, kb) in kb.iter().enumerate() {
+                    ke[(b * D + j) * nd + a * D..][..D].copy_from_slice(kb);
                 }
-            }
-        }
-        for r in D..nd {
-            for c in 0..r - r % D {
-                ke[r * nd + c] = ke[c * nd + r];
+                for i in 0..D {
+                    let row: [f64; D] = std::array::from_fn(|j| kb[j][i]);
+                    ke[(a * D + i) * nd + b * D..][..D].copy_from_slice(&row);
+                }
             }
         }
     }
