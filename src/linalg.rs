@@ -136,18 +136,21 @@ pub fn matmul(dim: usize, a: &Mat3, b: &Mat3) -> Mat3 {
     c
 }
 
-/// `f()`, compiled for AVX2 when the processor has it (four doubles per
-/// vector instruction instead of the two of plain x86-64, for which the
-/// library is built). `f`, which must be a closure marked
+/// `f()`, compiled for AVX2 and FMA when the processor has them (four
+/// doubles per vector instruction instead of the two of plain x86-64, for
+/// which the library is built). `f`, which must be a closure marked
 /// `#[inline(always)]`, is inlined into a copy of this function built for
-/// AVX2, with what it inlines (mark its helpers `#[inline(always)]` too). The
-/// copy does the same operations in the same order (AVX2 has no fused
-/// multiply-add), so the results are the same on every processor.
+/// them, with what it inlines (mark its helpers `#[inline(always)]` too).
+/// The copy does the same operations in the same order, and the compiler
+/// never fuses a product and a sum by itself; where `f` asks for a fused
+/// multiply-add (`mul_add`, rounded once), the copy has one instruction
+/// and the plain build a library call, slower but rounded the same. So the
+/// results are the same on every processor.
 #[inline(always)]
 pub fn with_avx2<R>(f: impl FnOnce() -> R) -> R {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        #[target_feature(enable = "avx2")]
+    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+        #[target_feature(enable = "avx2,fma")]
         #[inline]
         unsafe fn copy<R>(f: impl FnOnce() -> R) -> R {
             f()

@@ -161,7 +161,7 @@ fn substitute(lu: &[f64], ni: usize, nb: usize, w: &mut [f64], g: &mut [f64]) {
             if l != 0.0 {
                 let (done, row) = w.split_at_mut(i * nb);
                 for (x, y) in row[..nb].iter_mut().zip(&done[k * nb..(k + 1) * nb]) {
-                    *x -= l * y;
+                    *x = (-l).mul_add(*y, *x);
                 }
                 g[i] -= l * g[k];
             }
@@ -172,7 +172,7 @@ fn substitute(lu: &[f64], ni: usize, nb: usize, w: &mut [f64], g: &mut [f64]) {
             let u = lu[i * ni + k];
             let (head, tail) = w.split_at_mut(k * nb);
             for (x, y) in head[i * nb..(i + 1) * nb].iter_mut().zip(&tail[..nb]) {
-                *x -= u * y;
+                *x = (-u).mul_add(*y, *x);
             }
             g[i] -= u * g[k];
         }
@@ -207,7 +207,7 @@ fn schur_update(
         ws.row.resize(nb, 0.0);
         for (i, &k) in kbi.iter().enumerate() {
             for (s, x) in ws.row.iter_mut().zip(&w[i * nb..(i + 1) * nb]) {
-                *s += k * x;
+                *s = k.mul_add(*x, *s);
             }
         }
         if prefix {

@@ -159,8 +159,8 @@ impl LinearElasticKernel {
 /// The lower triangle of M = Aw Aᵀ for `nd` dofs and `nq` points (`awt`,
 /// `at`: `ld` values a point), by tiles of [`TILE_ROWS`] × [`TILE_COLS`]
 /// sums kept in registers: those on or below the diagonal, which also cover
-/// some entries above it. M is symmetric, so this is half the products of a
-/// full one.
+/// some entries above it, in fused multiply-adds. M is symmetric, so this is
+/// half the products of a full one.
 #[inline(always)]
 fn gram_lower(nd: usize, nq: usize, ld: usize, awt: &[f64], at: &[f64], m: &mut [f64]) {
     for c0 in (0..nd).step_by(TILE_COLS) {
@@ -171,7 +171,7 @@ fn gram_lower(nd: usize, nq: usize, ld: usize, awt: &[f64], at: &[f64], m: &mut 
                 let s: &[f64; TILE_COLS] = at[q * ld + c0..][..TILE_COLS].try_into().expect("tile columns");
                 for (acc, &s) in acc.iter_mut().zip(s) {
                     for (x, &a) in acc.iter_mut().zip(a) {
-                        *x += a * s;
+                        *x = a.mul_add(s, *x);
                     }
                 }
             }
