@@ -202,17 +202,22 @@ fn schur_update(
         ws.kbi.clear();
         ws.kbi.extend(ii.iter().map(|&c| row[c]));
         let kbi = &ws.kbi;
-        // Row r of K_BI W as a sum of rows of W (contiguous, vectorised).
-        ws.row.clear();
-        ws.row.resize(nb, 0.0);
-        for (i, &k) in kbi.iter().enumerate() {
-            for (s, x) in ws.row.iter_mut().zip(&w[i * nb..(i + 1) * nb]) {
-                *s = k.mul_add(*x, *s);
-            }
-        }
         if prefix {
-            row[..nb].iter_mut().zip(&ws.row).for_each(|(x, s)| *x -= s);
+            // Row r of K_BB minus each row of W in turn (contiguous, vectorised).
+            for (i, &k) in kbi.iter().enumerate() {
+                for (x, y) in row[..nb].iter_mut().zip(&w[i * nb..(i + 1) * nb]) {
+                    *x = (-k).mul_add(*y, *x);
+                }
+            }
         } else {
+            // Row r of K_BI W as a sum of rows of W, then scattered.
+            ws.row.clear();
+            ws.row.resize(nb, 0.0);
+            for (i, &k) in kbi.iter().enumerate() {
+                for (s, y) in ws.row.iter_mut().zip(&w[i * nb..(i + 1) * nb]) {
+                    *s = k.mul_add(*y, *s);
+                }
+            }
             bb.iter().zip(&ws.row).for_each(|(&c, s)| row[c] -= s);
         }
         if let Some(re) = re.as_deref_mut() {
