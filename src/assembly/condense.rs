@@ -63,7 +63,6 @@ pub struct CondenseWorkspace {
     lu: Vec<f64>,
     perm: Vec<usize>,
     kbi: Vec<f64>,
-    row: Vec<f64>,
 }
 
 /// Condense the element matrix `ke` (row-major, `n` = |I| + |B| dofs) and,
@@ -202,23 +201,15 @@ fn schur_update(
         ws.kbi.clear();
         ws.kbi.extend(ii.iter().map(|&c| row[c]));
         let kbi = &ws.kbi;
-        if prefix {
-            // Row r of K_BB minus each row of W in turn (contiguous, vectorised).
-            for (i, &k) in kbi.iter().enumerate() {
-                for (x, y) in row[..nb].iter_mut().zip(&w[i * nb..(i + 1) * nb]) {
-                    *x = (-k).mul_add(*y, *x);
-                }
+        // Row r of K_BB minus each row of W in turn, contiguous (vectorised)
+        // when the boundary dofs come first.
+        for (i, &k) in kbi.iter().enumerate() {
+            let wi = &w[i * nb..(i + 1) * nb];
+            if prefix {
+                row[..nb].iter_mut().zip(wi).for_each(|(x, y)| *x = (-k).mul_add(*y, *x));
+            } else {
+                bb.iter().zip(wi).for_each(|(&c, y)| row[c] = (-k).mul_add(*y, row[c]));
             }
-        } else {
-            // Row r of K_BI W as a sum of rows of W, then scattered.
-            ws.row.clear();
-            ws.row.resize(nb, 0.0);
-            for (i, &k) in kbi.iter().enumerate() {
-                for (s, y) in ws.row.iter_mut().zip(&w[i * nb..(i + 1) * nb]) {
-                    *s = k.mul_add(*y, *s);
-                }
-            }
-            bb.iter().zip(&ws.row).for_each(|(&c, s)| row[c] -= s);
         }
         if let Some(re) = re.as_deref_mut() {
             re[r] += kbi.iter().zip(g.iter()).map(|(k, gi)| k * gi).sum::<f64>();
