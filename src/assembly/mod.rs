@@ -489,21 +489,13 @@ impl Target<'_> {
     /// from the layout of [`DofMap::pattern`] (column (n, j) lists node n's
     /// components j.. then each later node's components in order, so the
     /// block of node m > n sits j places earlier in column (n, j) than in
-    /// column (n, 0)). `slots` is scratch space.
+    /// column (n, 0)). `slots`: the cell's rows and column starts
+    /// ([`CellSlots::locate`]).
     #[inline]
-    fn add_cell(&self, cell: &[usize], offsets: &[u32], ke: &[f64], b: &[f64], slots: &mut CellSlots) {
-        let (dofs, pattern, dim) = (self.dofs, self.pattern, self.dofs.dim);
+    fn add_cell(&self, cell: &[usize], offsets: &[u32], ke: &[f64], b: &[f64], slots: &CellSlots) {
+        let (pattern, dim) = (self.pattern, self.dofs.dim);
         let ndof_e = cell.len() * dim;
-        // Each node's system row (usize::MAX when prescribed or condensed,
-        // which no row is below) and the starts of its columns.
         let CellSlots { rows, starts } = slots;
-        rows.clear();
-        starts.clear();
-        for &n in cell {
-            let row = dofs.system_row(n * dim);
-            rows.push(row.unwrap_or(usize::MAX));
-            starts.extend((0..dim).map(|j| row.map_or(0, |r| pattern.col_ptr[r + j])));
-        }
         for (ra, &r0) in rows.iter().enumerate() {
             if r0 == usize::MAX {
                 continue;
@@ -532,11 +524,47 @@ impl Target<'_> {
 }
 
 /// Scratch space of [`Target::add_cell`]: per node of the cell, its system
-/// row and the starts of its columns in the pattern.
+/// row (usize::MAX when prescribed or condensed, which no row is below) and
+/// the starts of its columns in the pattern.
 #[derive(Debug, Default)]
 struct CellSlots {
     rows: Vec<usize>,
     starts: Vec<usize>,
+}
+
+impl CellSlots {
+    /// The rows and column starts of `cell`'s nodes; then, on x86-64, a
+    /// prefetch of every cache line its block pairs will be added to, which
+    /// the element kernel's computation gives the time to arrive.
+    #[inline]
+    fn locate(&mut self, target: &Target, cell: &[usize], offsets: &[u32]) {
+        let (dofs, pattern, dim) = (target.dofs, target.pattern, target.dofs.dim);
+        self.rows.clear();
+        self.starts.clear();
+        for &n in cell {
+            let row = dofs.system_row(n * dim);
+            self.rows.push(row.unwrap_or(usize::MAX));
+            self.starts.extend((0..dim).map(|j| row.map_or(0, |r| pattern.col_ptr[r + j])));
+        }
+        #[cfg(target_arch = "x86_64")]
+        for (ra, &r0) in self.rows.iter().enumerate() {
+            if r0 == usize::MAX {
+                continue;
+            }
+            for (cb, &s0) in self.rows.iter().enumerate() {
+                if s0 <= r0 {
+                    let offset = if ra == cb { 0 } else { offsets[pair_index(ra, cb)] as usize };
+                    for j in 0..dim {
+                        let at = target.values.as_ptr().wrapping_add(self.starts[cb * dim + j] + offset - j);
+                        // SAFETY: a prefetch is only a hint; it reads nothing.
+                        unsafe { std::arch::x86_64::_mm_prefetch(at.cast::<i8>(), std::arch::x86_64::_MM_HINT_T1) };
+                    }
+                }
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = offsets;
+    }
 }
 
 /// The linear system of one mesh and everything that assembles it: the dof
@@ -656,6 +684,7 @@ impl System {
         type Scratch<W> = ((Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>), Vec<f64>, W, CondenseWorkspace, CellSlots);
         let one_cell = |((ke, re, xe, kept), b, ws, cws, slots): &mut Scratch<K::Workspace>, c: usize| -> Result<()> {
                     let cell = mesh.cell(c);
+                    slots.locate(&target, cell, self.plan.cell_offsets(c));
                     for (a, &n) in cell.iter().enumerate() {
                         xe[a * dim..(a + 1) * dim].copy_from_slice(&coords[n * dim..(n + 1) * dim]);
                     }
