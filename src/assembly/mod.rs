@@ -493,28 +493,54 @@ impl Target<'_> {
     /// ([`CellSlots::locate`]).
     #[inline]
     fn add_cell(&self, cell: &[usize], offsets: &[u32], ke: &[f64], b: &[f64], slots: &CellSlots) {
-        let (pattern, dim) = (self.pattern, self.dofs.dim);
-        let ndof_e = cell.len() * dim;
+        match self.dofs.dim {
+            2 => self.add_cell_in::<2>(cell, offsets, ke, b, slots),
+            _ => self.add_cell_in::<3>(cell, offsets, ke, b, slots),
+        }
+    }
+
+    /// [`Self::add_cell`] in dimension `D`: a pair's block is `D` runs of
+    /// `D` slots, each found once, its loops unrolled.
+    #[inline(always)]
+    fn add_cell_in<const D: usize>(&self, cell: &[usize], offsets: &[u32], ke: &[f64], b: &[f64], slots: &CellSlots) {
+        let pattern = self.pattern;
+        let ndof_e = cell.len() * D;
         let CellSlots { rows, starts } = slots;
         for (ra, &r0) in rows.iter().enumerate() {
             if r0 == usize::MAX {
                 continue;
             }
+            // Rows (na, 0..D) of the element matrix.
+            let ke_a: [&[f64]; D] = std::array::from_fn(|i| &ke[(ra * D + i) * ndof_e..][..ndof_e]);
             for (cb, &s0) in rows.iter().enumerate() {
                 if s0 > r0 {
                     continue;
                 }
+                if ra == cb {
+                    for j in 0..D {
+                        let start = starts[cb * D + j] - j;
+                        for i in j..D {
+                            debug_assert_eq!(pattern.row_idx[start + i] as usize, r0 + i);
+                            add(&self.values[start + i], ke_a[i][cb * D + j]);
+                        }
+                    }
+                    continue;
+                }
                 // Offset of row (na, 0) within column (nb, 0).
-                let offset = if ra == cb { 0 } else { offsets[pair_index(ra, cb)] as usize };
-                for j in 0..dim {
-                    let start = starts[cb * dim + j] + offset - j;
-                    for i in if ra == cb { j..dim } else { 0..dim } {
+                let offset = offsets[pair_index(ra, cb)] as usize;
+                // The block K_(a i)(b j), row by row.
+                let block: [&[f64; D]; D] =
+                    std::array::from_fn(|i| ke_a[i][cb * D..][..D].try_into().expect("D columns"));
+                for j in 0..D {
+                    let start = starts[cb * D + j] + offset - j;
+                    let slots: &[AtomicU64; D] = self.values[start..start + D].try_into().expect("D slots");
+                    for (i, slot) in slots.iter().enumerate() {
                         debug_assert_eq!(pattern.row_idx[start + i] as usize, r0 + i);
-                        add(&self.values[start + i], ke[(ra * dim + i) * ndof_e + cb * dim + j]);
+                        add(slot, block[i][j]);
                     }
                 }
             }
-            for (i, &bi) in b[ra * dim..(ra + 1) * dim].iter().enumerate() {
+            for (i, &bi) in b[ra * D..(ra + 1) * D].iter().enumerate() {
                 if bi != 0.0 {
                     add(&self.rhs[r0 + i], bi);
                 }
