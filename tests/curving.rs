@@ -89,3 +89,38 @@ fn naive_invalid(c: &CurvedMesh) -> usize {
     let cache = ElementCache::new(&LagrangeBasis::new(&nodes), &simplex_rule(m.simplex, 2 * m.order));
     quality::summarize(&quality::cell_qualities(&cache, &coords, None, &m.cells, None)).n_invalid
 }
+
+/// `naca0012_coarse_gmsh.msh`: gmsh's triangles (Frontal-Delaunay) around a
+/// NACA 0012 section of unit chord, leading edge at the origin, in the box
+/// [-1, 2] × [-1, 1]; the section is a closed spline through 24 points of
+/// its closed-trailing-edge formula (curve tag 5), meshed at size 1/12
+/// there: 447 triangles. Its leading edge is not a vertex: one boundary
+/// edge, from x = 0.0276 on the lower surface to the same x on the upper,
+/// cuts off the nose. The closest points of that edge's nodes lie on either
+/// surface, none near the nose: the curved edge skipped it at p = 2..6,
+/// and at p = 8 and 10 no stage could make the cells valid.
+#[test]
+fn a_coarse_aerofoil_keeps_its_nose_and_curves_at_high_orders() {
+    use hocurve::geometry::{Shape, ShapeProjector};
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/naca0012_coarse_gmsh.msh");
+    let mut mesh = hocurve::io::gmsh::to_linear_mesh(&hocurve::io::gmsh::read_msh(&path).unwrap()).unwrap();
+    let mut projector = ShapeProjector::new();
+    projector.insert(5, Shape::Naca4 { digits: [0, 0, 1, 2], chord: 1.0, origin: [0.0, 0.0] });
+    mesh.retain_tags(|d, t| projector.get(d, t).is_some());
+    for order in [4, 8] {
+        let opts = CurveOptions { order, ..Default::default() };
+        let c = curve(&mesh, &projector, &opts, &mut |_| true).unwrap_or_else(|e| panic!("p = {order}: {e}"));
+        let q = &c.report.quality;
+        assert_eq!((q.n_certified_invalid, q.n_uncertain), (0, 0), "p = {order}");
+        assert_eq!(c.report.edges_along_curves, 1, "p = {order}: the edge across the nose");
+        // The curved boundary reaches the nose: at even orders the edge's
+        // middle node goes to the leading edge (the edge is symmetric), to
+        // within a hundredth of the nose's depth (0.0276); its closest point
+        // was at x = 0.0142.
+        let front = (0..c.mesh.n_nodes())
+            .filter(|&n| matches!(c.mesh.constraint[n], NodeConstraint::OnEntity { tag: 5, .. }))
+            .map(|n| c.mesh.node(n)[0])
+            .fold(f64::INFINITY, f64::min);
+        assert!(front < 3e-4, "p = {order}: the section's front node at x = {front}");
+    }
+}

@@ -271,6 +271,10 @@ pub struct CurveReport {
     pub projected_nodes: usize,
     /// Largest distance between a straight node and its projection.
     pub max_projection_distance: f64,
+    /// Edges on curves whose nodes were placed along the curve instead of
+    /// at their closest points, which were out of place (an edge cutting
+    /// across a bend, such as a coarse aerofoil's nose).
+    pub edges_along_curves: usize,
     pub quality: MeshQuality,
     pub timings: Timings,
     /// NONLINEAR: ‖R‖/‖R₀‖ after each Newton iteration, per increment.
@@ -935,6 +939,7 @@ impl Optimised {
             input_cell,
             projected_nodes: placement.projected_nodes,
             max_projection_distance: placement.max_distance,
+            edges_along_curves: placement.edges_along_curves,
             quality,
             timings,
             newton_history: solved.newton_history,

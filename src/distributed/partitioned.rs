@@ -692,7 +692,16 @@ fn encode_report(w: &mut Wire, r: &CurveReport) {
         w.int(b.cell.map_or(0, |c| c + 1));
         w.floats.extend_from_slice(&[b.load, b.step]);
     }
-    for n in [r.nodes, r.dofs, r.system_dofs, r.cells, r.reoriented_cells, r.removed_caps, r.projected_nodes] {
+    for n in [
+        r.nodes,
+        r.dofs,
+        r.system_dofs,
+        r.cells,
+        r.reoriented_cells,
+        r.removed_caps,
+        r.projected_nodes,
+        r.edges_along_curves,
+    ] {
         w.int(n);
     }
     w.floats.push(r.max_projection_distance);
@@ -744,7 +753,7 @@ fn decode_report(r: &mut Reader, session: &Session) -> CurveReport {
             StepBack { load: r.float(), step: r.float(), reason, cell }
         })
         .collect();
-    let [nodes, dofs, system_dofs, cells, reoriented_cells, removed_caps, projected_nodes] =
+    let [nodes, dofs, system_dofs, cells, reoriented_cells, removed_caps, projected_nodes, edges_along_curves] =
         std::array::from_fn(|_| r.int());
     let max_projection_distance = r.float();
     let caps_kept_after = Some(r.text()).filter(|s| !s.is_empty());
@@ -804,6 +813,7 @@ fn decode_report(r: &mut Reader, session: &Session) -> CurveReport {
         input_cell: Vec::new(),
         projected_nodes,
         max_projection_distance,
+        edges_along_curves,
         quality,
         timings: Timings::default(),
         newton_history: Vec::new(),

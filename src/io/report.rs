@@ -74,7 +74,7 @@ pub fn curve_report_json(r: &CurveReport, spacing: NodeSpacing, output: Option<&
         "{{\n  \"order\": {},\n  \"formulation\": \"{}\",\n  \"material\": \"{}\",\n  \"young\": {},\n  \
          \"poisson\": {},\n  \"increments\": {},\n  \"adaptive\": {},\n  \"max_splits\": {},\n  \
          \"increments_taken\": {},\n  \"load_fractions\": {:?},\n  \"step_backs\": [{}],\n  \"spacing\": \"{}\",\n  \"nodes\": {},\n  \"dofs\": {},\n  \"system_dofs\": {},\n  \
-         \"cells\": {},\n  \"removed_caps\": {},\n  \"caps_kept_after\": {},\n  \"caps_kept_failed\": {},\n  \"repair\": {},\n  \"projected_nodes\": {},\n  \"max_projection_distance\": {},\n{},\n  \
+         \"cells\": {},\n  \"removed_caps\": {},\n  \"caps_kept_after\": {},\n  \"caps_kept_failed\": {},\n  \"repair\": {},\n  \"projected_nodes\": {},\n  \"max_projection_distance\": {},\n  \"edges_along_curves\": {},\n{},\n  \
          \"newton_history\": {:?},\n  \"linear_solver\": \"{}\",\n  \"solver_iterations\": {:?},\n  \
          \"solver_per_solve\": [{}],\n  \"fallbacks\": {},\n  \"fallback_per_solve\": [{}],\n  \
          \"seconds\": {{\"total\": {}, \"elevate\": {}, \"project\": {}, \"assembly\": {}, \"setup\": {}, \"solve\": {}, \"quality\": {}, \"check\": {}, \"optimize\": {}}},\n  \
@@ -111,6 +111,7 @@ pub fn curve_report_json(r: &CurveReport, spacing: NodeSpacing, output: Option<&
         repair_json(&r.repair),
         r.projected_nodes,
         num(r.max_projection_distance),
+        r.edges_along_curves,
         quality_json(&r.quality),
         r.newton_history,
         r.solves.solver,
