@@ -144,15 +144,11 @@ const GAP_RATIO: f64 = 2.0;
 const MARCH_STEPS: usize = 8;
 
 /// Place again, along its curve, the nodes of each edge on a curve whose
-/// closest-point projections (`target`) are out of place: some pair of
-/// consecutive nodes (vertices included) much farther apart than their
-/// share of the edge ([`GAP_RATIO`]). The curve between the edge's vertices
-/// is followed from the first by small steps, each along the direction of
-/// the last and projected back onto the curve (so it goes round a bend),
-/// and the nodes are placed at the arc-length fractions of their reference
-/// positions on the edge, then projected once more. Edges whose march does
-/// not reach the other vertex keep their closest points. Returns the edges
-/// placed again.
+/// closest-point projections (`target`) are out of place ([`uneven`]): the
+/// curve between the edge's vertices is followed ([`march`]) and the nodes
+/// are placed at the arc-length fractions of their reference positions on
+/// the edge, then projected once more. Edges whose march does not reach the
+/// other vertex keep their closest points. Returns the edges placed again.
 fn along_curves(mesh: &HighOrderMesh, projector: &dyn Projector, target: &mut [(usize, [f64; 3])]) -> Result<usize> {
     let on_curve = |n: usize| matches!(mesh.constraint[n], NodeConstraint::OnEntity { dim: 1, .. });
     if mesh.order < 2 || !(0..mesh.n_nodes()).any(on_curve) {
@@ -162,6 +158,57 @@ fn along_curves(mesh: &HighOrderMesh, projector: &dyn Projector, target: &mut [(
     for (i, &(n, _)) in target.iter().enumerate() {
         at[n] = i;
     }
+    let mut placed = 0;
+    for ([u, v], (tag, members)) in curve_edges(mesh) {
+        let (xa, xb) = (mesh.node(u), mesh.node(v));
+        let ab = sub(xb, xa);
+        let len2 = dot(ab, ab);
+        if len2.is_nan() || len2 <= 0.0 || members.iter().any(|&n| at[n] == usize::MAX) {
+            continue;
+        }
+        // The nodes by their fraction along the straight edge.
+        let mut by_s: Vec<(f64, usize)> = members.iter().map(|&n| (dot(sub(mesh.node(n), xa), ab) / len2, n)).collect();
+        by_s.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let points: Vec<[f64; 3]> =
+            std::iter::once(xa).chain(by_s.iter().map(|&(_, n)| target[at[n]].1)).chain([xb]).collect();
+        let fractions: Vec<f64> = std::iter::once(0.0).chain(by_s.iter().map(|&(s, _)| s)).chain([1.0]).collect();
+        if !uneven(&points, &fractions) {
+            continue;
+        }
+        let project_one = |x: [f64; 3]| -> Result<[f64; 3]> {
+            let mut out = [[f64::NAN; 3]];
+            projector
+                .project(1, tag, &[x], &mut out)
+                .map_err(|m| Error::Projection(format!("projector failed on entity (dim 1, tag {tag}): {m}")))?;
+            let mut y = out[0];
+            if mesh.dim() == 2 {
+                y[2] = 0.0;
+            }
+            Ok(y)
+        };
+        let Some(arc) = march(&project_one, xa, xb, norm(ab) / (MARCH_STEPS * mesh.order) as f64)? else { continue };
+        let mut length = vec![0.0];
+        for k in 1..arc.len() {
+            length.push(length[k - 1] + norm(sub(arc[k], arc[k - 1])));
+        }
+        let total = *length.last().expect("two points");
+        for &(s, n) in &by_s {
+            let want = s * total;
+            let k = length.partition_point(|&l| l <= want).clamp(1, arc.len() - 1);
+            let w = ((want - length[k - 1]) / (length[k] - length[k - 1]).max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
+            let y = project_one([0, 1, 2].map(|d| arc[k - 1][d] + w * (arc[k][d] - arc[k - 1][d])))?;
+            if y.iter().all(|v| v.is_finite()) {
+                target[at[n]].1 = y;
+            }
+        }
+        placed += 1;
+    }
+    Ok(placed)
+}
+
+/// The edges of `mesh` whose nodes lie on a curve: their vertices (sorted),
+/// the curve's tag and the edge's nodes.
+fn curve_edges(mesh: &HighOrderMesh) -> BTreeMap<[usize; 2], (i32, Vec<usize>)> {
     // The local edge nodes of a cell, with the local vertices of their edge.
     let nodes = NodeSet::new(mesh.simplex, mesh.order, mesh.spacing);
     let dim = mesh.dim();
@@ -176,7 +223,6 @@ fn along_curves(mesh: &HighOrderMesh, projector: &dyn Projector, target: &mut [(
             _ => None,
         })
         .collect();
-    // The edges on curves: their vertices (sorted), tag and nodes.
     let mut edges: BTreeMap<[usize; 2], (i32, Vec<usize>)> = BTreeMap::new();
     for c in 0..mesh.n_cells() {
         let cell = mesh.cell(c);
@@ -189,85 +235,52 @@ fn along_curves(mesh: &HighOrderMesh, projector: &dyn Projector, target: &mut [(
             }
         }
     }
-    let mut placed = 0;
-    for ([u, v], (tag, members)) in edges {
-        let (xa, xb) = (mesh.node(u), mesh.node(v));
-        let ab = sub(xb, xa);
-        let len2 = dot(ab, ab);
-        if len2.is_nan() || len2 <= 0.0 || members.iter().any(|&n| at[n] == usize::MAX) {
-            continue;
+    edges
+}
+
+/// True when the gaps between consecutive `points` of an edge (its
+/// vertices and its nodes' closest points, in order), each over its share
+/// `fractions[k + 1] − fractions[k]` of the reference edge, differ by more
+/// than [`GAP_RATIO`].
+fn uneven(points: &[[f64; 3]], fractions: &[f64]) -> bool {
+    let (lo, hi) = points.windows(2).zip(fractions.windows(2)).fold((f64::INFINITY, 0.0f64), |(lo, hi), (x, s)| {
+        let rate = norm(sub(x[1], x[0])) / (s[1] - s[0]);
+        (lo.min(rate), hi.max(rate))
+    });
+    hi > GAP_RATIO * lo
+}
+
+/// The curve from `xa` to `xb` as a polyline: from `xa`'s projection, steps
+/// of length `step` along the direction of the last (the first along the
+/// curve towards `xb`), each projected back by `project_one`, until within
+/// a step of `xb`. None if it does not get there in four times the steps
+/// of the chord, or stalls.
+fn march(
+    project_one: &dyn Fn([f64; 3]) -> Result<[f64; 3]>,
+    xa: [f64; 3],
+    xb: [f64; 3],
+    step: f64,
+) -> Result<Option<Vec<[f64; 3]>>> {
+    let ab = sub(xb, xa);
+    let start = project_one(xa)?;
+    let mut dir = unit(sub(project_one([0, 1, 2].map(|d| start[d] + 1e-2 * ab[d]))?, start));
+    let mut arc = vec![xa, start];
+    let steps = (4.0 * norm(ab) / step).ceil() as usize;
+    for _ in 0..steps {
+        let last = *arc.last().expect("xa");
+        if norm(sub(xb, last)) <= step {
+            arc.push(xb);
+            return Ok(Some(arc));
         }
-        // The nodes by their fraction along the straight edge.
-        let mut by_s: Vec<(f64, usize)> = members.iter().map(|&n| (dot(sub(mesh.node(n), xa), ab) / len2, n)).collect();
-        by_s.sort_by(|x, y| x.0.total_cmp(&y.0));
-        let mut points = vec![xa];
-        points.extend(by_s.iter().map(|&(_, n)| target[at[n]].1));
-        points.push(xb);
-        let mut fractions = vec![0.0];
-        fractions.extend(by_s.iter().map(|&(s, _)| s));
-        fractions.push(1.0);
-        let rates: Vec<f64> = (0..points.len() - 1)
-            .map(|k| norm(sub(points[k + 1], points[k])) / (fractions[k + 1] - fractions[k]))
-            .collect();
-        let (lo, hi) = rates.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &r| (lo.min(r), hi.max(r)));
-        if hi <= GAP_RATIO * lo {
-            continue;
+        let next = project_one([0, 1, 2].map(|d| last[d] + step * dir[d]))?;
+        let moved = sub(next, last);
+        if !next.iter().all(|v| v.is_finite()) || norm(moved) <= 1e-3 * step {
+            return Ok(None);
         }
-        let project_one = |x: [f64; 3]| -> Result<[f64; 3]> {
-            let mut out = [[f64::NAN; 3]];
-            projector
-                .project(1, tag, &[x], &mut out)
-                .map_err(|m| Error::Projection(format!("projector failed on entity (dim 1, tag {tag}): {m}")))?;
-            let mut y = out[0];
-            if dim == 2 {
-                y[2] = 0.0;
-            }
-            Ok(y)
-        };
-        // March along the curve from xa to xb: steps of a fraction of the
-        // chord along the direction of the last step, each projected back;
-        // the first along the curve towards xb, from xa's projection.
-        let step = norm(ab) / (MARCH_STEPS * mesh.order) as f64;
-        let start = project_one(xa)?;
-        let mut dir = unit(sub(project_one([0, 1, 2].map(|d| start[d] + 1e-2 * ab[d]))?, start));
-        let mut arc = vec![xa, start];
-        let mut reached = false;
-        for _ in 0..4 * MARCH_STEPS * mesh.order {
-            let last = *arc.last().expect("xa");
-            if norm(sub(xb, last)) <= step {
-                reached = true;
-                break;
-            }
-            let next = project_one([0, 1, 2].map(|d| last[d] + step * dir[d]))?;
-            let moved = sub(next, last);
-            if !next.iter().all(|v| v.is_finite()) || norm(moved) <= 1e-3 * step {
-                break;
-            }
-            dir = unit(moved);
-            arc.push(next);
-        }
-        if !reached {
-            continue;
-        }
-        arc.push(xb);
-        let mut length = vec![0.0];
-        for k in 1..arc.len() {
-            length.push(length[k - 1] + norm(sub(arc[k], arc[k - 1])));
-        }
-        let total = *length.last().expect("two points");
-        for &(s, n) in &by_s {
-            let want = s * total;
-            let k = length.partition_point(|&l| l <= want).clamp(1, arc.len() - 1);
-            let w = ((want - length[k - 1]) / (length[k] - length[k - 1]).max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
-            let x = [0, 1, 2].map(|d| arc[k - 1][d] + w * (arc[k][d] - arc[k - 1][d]));
-            let y = project_one(x)?;
-            if y.iter().all(|v| v.is_finite()) {
-                target[at[n]].1 = y;
-            }
-        }
-        placed += 1;
+        dir = unit(moved);
+        arc.push(next);
     }
-    Ok(placed)
+    Ok(None)
 }
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
