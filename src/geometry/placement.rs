@@ -140,11 +140,18 @@ fn project_boundary(
 /// chord that cuts off a coarse aerofoil's nose gives 3 at p = 2.
 const GAP_RATIO: f64 = 2.0;
 
+/// The least distance from the chord, as a fraction of its length, at
+/// which an edge's closest points count as a bend (a circular arc of about
+/// 23°): below it, uneven gaps are the projector's slips along an almost
+/// straight curve, which a march would not mend.
+const BEND: f64 = 0.05;
+
 /// Steps per node of the march along a curve in [`along_curves`].
 const MARCH_STEPS: usize = 8;
 
 /// Place again, along its curve, the nodes of each edge on a curve whose
-/// closest-point projections (`target`) are out of place ([`uneven`]): the
+/// closest-point projections (`target`) are out of place ([`uneven`]) across
+/// a bend ([`BEND`]): the
 /// curve between the edge's vertices is followed ([`march`]) and the nodes
 /// are placed at the arc-length fractions of their reference positions on
 /// the edge, then projected once more. Edges whose march does not reach the
@@ -172,7 +179,12 @@ fn along_curves(mesh: &HighOrderMesh, projector: &dyn Projector, target: &mut [(
         let points: Vec<[f64; 3]> =
             std::iter::once(xa).chain(by_s.iter().map(|&(_, n)| target[at[n]].1)).chain([xb]).collect();
         let fractions: Vec<f64> = std::iter::once(0.0).chain(by_s.iter().map(|&(s, _)| s)).chain([1.0]).collect();
-        if !uneven(&points, &fractions) {
+        let off_chord = points.iter().map(|&x| {
+            let r = sub(x, xa);
+            let t = dot(r, ab) / len2;
+            norm([0, 1, 2].map(|d| r[d] - t * ab[d]))
+        });
+        if !uneven(&points, &fractions) || off_chord.fold(0.0, f64::max) < BEND * len2.sqrt() {
             continue;
         }
         let project_one = |x: [f64; 3]| -> Result<[f64; 3]> {
@@ -373,6 +385,49 @@ mod tests {
                 apart = apart.max((closest - by_arc).abs());
             }
             assert!(apart > 0.3, "p = {p}: the closest points are {apart} rad from the arc's, too close to tell");
+        }
+    }
+
+    /// Projects onto the line x = cos 85° of the cap's circle edge, but
+    /// slips along it: y goes to `slip(y)`, monotone, which moves the
+    /// projections of evenly spaced points towards y_b in the middle.
+    struct Slipping;
+
+    fn slip(y: f64) -> f64 {
+        let h = 85.0f64.to_radians();
+        let s = (y + h.sin()) / (2.0 * h.sin());
+        y + 0.3 * h.sin() * (std::f64::consts::PI * s).sin()
+    }
+
+    impl Projector for Slipping {
+        fn project(
+            &self,
+            _: usize,
+            _: i32,
+            points: &[[f64; 3]],
+            out: &mut [[f64; 3]],
+        ) -> std::result::Result<(), String> {
+            for (x, y) in points.iter().zip(out) {
+                *y = [85.0f64.to_radians().cos(), slip(x[1]), 0.0];
+            }
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn uneven_projections_on_a_straight_edge_are_left_as_they_are() {
+        // Gaps from 0.55 to 1.45 times their share at p = 4: uneven, but
+        // the edge is straight.
+        let (mesh, linear) = cap(85.0, 4);
+        let placement = place_boundary_nodes(&mesh, &linear, &Slipping).unwrap();
+        assert_eq!(placement.edges_along_curves, 0);
+        let nodes: Vec<usize> = (mesh.n_vertices..mesh.n_nodes())
+            .filter(|&n| matches!(mesh.constraint[n], NodeConstraint::OnEntity { .. }))
+            .collect();
+        assert_eq!(nodes.len(), 3);
+        for n in nodes {
+            let y = mesh.node(n)[1];
+            assert!((y + placement.displacement[2 * n + 1] - slip(y)).abs() < 1e-12);
         }
     }
 
