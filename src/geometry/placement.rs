@@ -150,12 +150,12 @@ const BEND: f64 = 0.05;
 const MARCH_STEPS: usize = 8;
 
 /// Place again, along its curve, the nodes of each edge on a curve whose
-/// closest-point projections (`target`) are out of place ([`uneven`]) across
-/// a bend ([`BEND`]): the
-/// curve between the edge's vertices is followed ([`march`]) and the nodes
-/// are placed at the arc-length fractions of their reference positions on
-/// the edge, then projected once more. Edges whose march does not reach the
-/// other vertex keep their closest points. Returns the edges placed again.
+/// closest-point projections (`target`) are out of place ([`uneven`])
+/// across a bend ([`BEND`]): the curve between the edge's vertices is
+/// followed ([`march`]) and the nodes are placed at the arc-length
+/// fractions of their reference positions on the edge, then projected once
+/// more. Edges whose march does not reach the other vertex keep their
+/// closest points. Returns the edges placed again.
 fn along_curves(mesh: &HighOrderMesh, projector: &dyn Projector, target: &mut [(usize, [f64; 3])]) -> Result<usize> {
     let on_curve = |n: usize| matches!(mesh.constraint[n], NodeConstraint::OnEntity { dim: 1, .. });
     if mesh.order < 2 || !(0..mesh.n_nodes()).any(on_curve) {
