@@ -12,6 +12,7 @@
 
 use std::collections::BTreeMap;
 
+use super::shapes::{dot, norm, sub, unit_or};
 use super::Projector;
 use crate::mesh::{HighOrderMesh, LinearMesh, NodeConstraint};
 use crate::reference::NodeSet;
@@ -275,7 +276,8 @@ fn march(
 ) -> Result<Option<Vec<[f64; 3]>>> {
     let ab = sub(xb, xa);
     let start = project_one(xa)?;
-    let mut dir = unit(sub(project_one([0, 1, 2].map(|d| start[d] + 1e-2 * ab[d]))?, start));
+    let probe = sub(project_one([0, 1, 2].map(|d| start[d] + 1e-2 * ab[d]))?, start);
+    let mut dir = unit_or(probe, probe);
     let mut arc = vec![xa, start];
     let steps = (4.0 * norm(ab) / step).ceil() as usize;
     for _ in 0..steps {
@@ -289,31 +291,10 @@ fn march(
         if !next.iter().all(|v| v.is_finite()) || norm(moved) <= 1e-3 * step {
             return Ok(None);
         }
-        dir = unit(moved);
+        dir = unit_or(moved, moved);
         arc.push(next);
     }
     Ok(None)
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
-}
-
-fn unit(a: [f64; 3]) -> [f64; 3] {
-    let n = norm(a);
-    if n > 0.0 {
-        a.map(|v| v / n)
-    } else {
-        a
-    }
 }
 
 #[cfg(test)]

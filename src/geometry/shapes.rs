@@ -471,7 +471,7 @@ fn unit(a: [f64; 3]) -> [f64; 3] {
 }
 
 /// `a / |a|`, or `fallback` when `a` is (numerically) zero.
-fn unit_or(a: [f64; 3], fallback: [f64; 3]) -> [f64; 3] {
+pub(crate) fn unit_or(a: [f64; 3], fallback: [f64; 3]) -> [f64; 3] {
     let n = norm(a);
     if n > f64::MIN_POSITIVE && n.is_finite() {
         scale(1.0 / n, a)
