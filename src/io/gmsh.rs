@@ -15,7 +15,7 @@
 //! assert_eq!((mesh.dim, mesh.cells.clone()), (2, vec![0, 1, 2]));
 //! ```
 
-use super::{io_err, write_atomically, write_f64, CellMeshView};
+use super::{io_err, push_f64, push_usize, write_atomically, write_f64, write_formatted, CellMeshView};
 use crate::error::{Error, Result};
 use crate::mesh::LinearMesh;
 use crate::reference::ordering::{gmsh_element_shape, gmsh_element_type, gmsh_multi_indices, gmsh_type_info};
@@ -282,36 +282,52 @@ pub fn write_msh_parts_to<W: Write>(mut w: W, mesh: &CellMeshView, partition: Op
         writeln!(w, "$Nodes\n{blocks} {n} 1 {n}")?;
         for (p, nodes) in nodes_of.iter().enumerate().filter(|(_, v)| !v.is_empty()) {
             writeln!(w, "{dim} {} 0 {}", tag(p), nodes.len())?;
-            for &i in nodes {
-                writeln!(w, "{}", i + 1)?;
-            }
-            for &i in nodes {
-                let x = mesh.node(i);
-                write_f64(w, x[0])?;
-                write!(w, " ")?;
-                write_f64(w, x[1])?;
-                write!(w, " ")?;
-                write_f64(w, x[2])?;
-                writeln!(w)?;
-            }
+            write_node_block(w, mesh, nodes)?;
         }
         writeln!(w, "$EndNodes")?;
         let blocks = (0..parts).filter(|&p| !cells_of[p].is_empty()).count();
         writeln!(w, "$Elements\n{blocks} {ne} 1 {ne}")?;
         for (p, cells) in cells_of.iter().enumerate().filter(|(_, v)| !v.is_empty()) {
             writeln!(w, "{dim} {} {ty} {}", tag(p), cells.len())?;
-            for &e in cells {
-                write!(w, "{}", e + 1)?;
-                for &k in &perm {
-                    write!(w, " {}", mesh.cells[e * npc + k] + 1)?;
-                }
-                writeln!(w)?;
-            }
+            write_cell_block(w, mesh, cells, &perm)?;
         }
         writeln!(w, "$EndElements")?;
         w.flush()
     })()
     .map_err(io_err)
+}
+
+/// The lines of a `$Nodes` block after its header: the tags of `nodes`
+/// (index + 1), then their coordinates.
+fn write_node_block<W: Write>(w: &mut W, mesh: &CellMeshView, nodes: &[usize]) -> std::io::Result<()> {
+    write_formatted(w, nodes.len(), |k, buf| {
+        push_usize(buf, nodes[k] + 1);
+        buf.push(b'\n');
+    })?;
+    write_formatted(w, nodes.len(), |k, buf| {
+        for (c, &x) in mesh.node(nodes[k]).iter().enumerate() {
+            if c > 0 {
+                buf.push(b' ');
+            }
+            push_f64(buf, x);
+        }
+        buf.push(b'\n');
+    })
+}
+
+/// The lines of an `$Elements` block after its header: each of `cells`'
+/// tag (index + 1), then its nodes' tags in gmsh's order (`perm`).
+fn write_cell_block<W: Write>(w: &mut W, mesh: &CellMeshView, cells: &[usize], perm: &[usize]) -> std::io::Result<()> {
+    let npc = mesh.nodes_per_cell();
+    write_formatted(w, cells.len(), |c, buf| {
+        let e = cells[c];
+        push_usize(buf, e + 1);
+        for &k in perm {
+            buf.push(b' ');
+            push_usize(buf, mesh.cells[e * npc + k] + 1);
+        }
+        buf.push(b'\n');
+    })
 }
 
 /// The smallest and largest coordinates of `nodes` of `mesh`, each written

@@ -127,15 +127,61 @@ pub(crate) fn io_err(e: std::io::Error) -> Error {
     Error::Io(e.to_string())
 }
 
-/// Writes `x` so that it reads back exactly: plain decimals for moderate
-/// magnitudes, exponent notation otherwise.
+/// Writes `x` so that it reads back exactly ([`push_f64`]).
 pub(crate) fn write_f64<W: Write>(w: &mut W, x: f64) -> std::io::Result<()> {
-    let a = x.abs();
-    if a == 0.0 || (1e-5..1e15).contains(&a) {
-        write!(w, "{x}")
-    } else {
-        write!(w, "{x:e}")
+    w.write_all(shortest(&mut ryu::Buffer::new(), x))
+}
+
+/// Appends `x` as the shortest decimal that reads back exactly: plain
+/// decimals for moderate magnitudes (integers without a fraction),
+/// exponent notation otherwise; `NaN`, `inf` and `-inf` for the others.
+pub(crate) fn push_f64(buf: &mut Vec<u8>, x: f64) {
+    buf.extend_from_slice(shortest(&mut ryu::Buffer::new(), x));
+}
+
+/// `x` formatted by ryu, less the ".0" it gives integers.
+fn shortest(buf: &mut ryu::Buffer, x: f64) -> &[u8] {
+    let s = buf.format(x).as_bytes();
+    s.strip_suffix(b".0").unwrap_or(s)
+}
+
+/// Appends `n` in decimal.
+pub(crate) fn push_usize(buf: &mut Vec<u8>, n: usize) {
+    buf.extend_from_slice(itoa::Buffer::new().format(n).as_bytes());
+}
+
+/// Items per task of [`write_formatted`].
+const FORMAT_CHUNK: usize = 4096;
+
+/// Tasks formatted at once by [`write_formatted`] before they are written,
+/// which bounds the text held in memory.
+const FORMAT_BATCH: usize = 64;
+
+/// Writes the text of items `0..n`, `format(i, buf)` appending item i's to
+/// `buf`: formatted in parallel, by chunks of items, and written in order.
+pub(crate) fn write_formatted<W: Write>(
+    w: &mut W,
+    n: usize,
+    format: impl Fn(usize, &mut Vec<u8>) + Sync,
+) -> std::io::Result<()> {
+    use rayon::prelude::*;
+    let tasks = n.div_ceil(FORMAT_CHUNK);
+    for first in (0..tasks).step_by(FORMAT_BATCH) {
+        let texts: Vec<Vec<u8>> = (first..tasks.min(first + FORMAT_BATCH))
+            .into_par_iter()
+            .map(|t| {
+                let mut buf = Vec::new();
+                for i in t * FORMAT_CHUNK..n.min((t + 1) * FORMAT_CHUNK) {
+                    format(i, &mut buf);
+                }
+                buf
+            })
+            .collect();
+        for text in texts {
+            w.write_all(&text)?;
+        }
     }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -143,12 +189,48 @@ mod tests {
     use super::*;
 
     #[test]
+    fn formatted_items_are_written_in_order_across_chunks_and_batches() {
+        let n = FORMAT_CHUNK * FORMAT_BATCH + 3 * FORMAT_CHUNK + 17;
+        let mut out = Vec::new();
+        write_formatted(&mut out, n, |i, buf| {
+            push_usize(buf, i);
+            buf.push(b' ');
+            push_f64(buf, i as f64 / 7.0);
+            buf.push(b'\n');
+        })
+        .unwrap();
+        let text = String::from_utf8(out).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), n);
+        for (i, line) in lines.iter().enumerate() {
+            let (a, b) = line.split_once(' ').unwrap();
+            assert_eq!(a.parse::<usize>().unwrap(), i);
+            assert_eq!(b.parse::<f64>().unwrap(), i as f64 / 7.0);
+        }
+    }
+
+    #[test]
+    fn integers_are_written_without_a_fraction_and_non_finite_values_by_name() {
+        let text = |x: f64| {
+            let mut s = Vec::new();
+            push_f64(&mut s, x);
+            String::from_utf8(s).unwrap()
+        };
+        assert_eq!(text(0.0), "0");
+        assert_eq!(text(-2.0), "-2");
+        assert_eq!(text(0.5), "0.5");
+        assert_eq!(text(1e-7), "1e-7");
+        assert_eq!(text(f64::NAN), "NaN");
+        assert_eq!(text(f64::NEG_INFINITY), "-inf");
+    }
+
+    #[test]
     fn write_f64_round_trips() {
-        for x in [0.0, -0.0, 1.0, 0.1, -2.5e-7, 1e300, 1.0 / 3.0, 123456.789] {
+        for x in [0.0, -0.0, 1.0, 0.1, -2.5e-7, 1e300, 1.0 / 3.0, 123456.789, f64::MIN_POSITIVE, -f64::MAX, 5e-324] {
             let mut s = Vec::new();
             write_f64(&mut s, x).unwrap();
             let s = String::from_utf8(s).unwrap();
-            assert_eq!(s.parse::<f64>().unwrap(), x, "{s}");
+            assert_eq!(s.parse::<f64>().unwrap().to_bits(), x.to_bits(), "{s}");
             assert!(s.len() < 30, "{s}");
         }
     }

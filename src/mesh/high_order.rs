@@ -77,20 +77,34 @@ impl HighOrderMesh {
     /// point. Exact, since both sets span the same polynomials; used to write
     /// equispaced files (gmsh, VTK) from an optimal-node mesh.
     pub fn coords_at_nodes(&self, basis: &LagrangeBasis, target: &NodeSet) -> Vec<f64> {
+        use rayon::prelude::*;
         let dim = self.dim();
         let npc = self.nodes_per_cell();
         let tab = basis.tabulate(&target.coords);
-        let mut out = self.coords.clone();
+        // Each node from the last cell that holds it (its neighbours give the
+        // same values to round-off), the cells in parallel.
+        let mut last = vec![usize::MAX; self.n_nodes()];
         for c in 0..self.n_cells() {
-            let cell = self.cell(c);
-            for (a, &g) in cell.iter().enumerate() {
-                if a <= dim {
-                    continue; // vertices do not move
-                }
-                for d in 0..dim {
-                    out[g * dim + d] = (0..npc).map(|b| tab.values[a * npc + b] * self.coords[cell[b] * dim + d]).sum();
-                }
+            for &g in self.cell(c) {
+                last[g] = c;
             }
+        }
+        let moved: Vec<(usize, [f64; 3])> = (0..self.n_cells())
+            .into_par_iter()
+            .flat_map_iter(|c| {
+                let (cell, tab, last) = (self.cell(c), &tab, &last);
+                cell.iter().enumerate().skip(dim + 1).filter(move |&(_, &g)| last[g] == c).map(move |(a, &g)| {
+                    let mut x = [0.0; 3];
+                    for (d, x) in x.iter_mut().enumerate().take(dim) {
+                        *x = (0..npc).map(|b| tab.values[a * npc + b] * self.coords[cell[b] * dim + d]).sum();
+                    }
+                    (g, x)
+                })
+            })
+            .collect();
+        let mut out = self.coords.clone();
+        for (g, x) in moved {
+            out[g * dim..(g + 1) * dim].copy_from_slice(&x[..dim]);
         }
         out
     }
