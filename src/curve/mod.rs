@@ -215,8 +215,11 @@ pub struct Timings {
     pub elevate: f64,
     pub project: f64,
     pub assembly: f64,
-    /// Symbolic analysis and preconditioner set-up.
+    /// Symbolic analysis, and the preconditioner that PCG builds for each
+    /// matrix (its smoothers and coarse levels).
     pub setup: f64,
+    /// The linear solves: PCG's iterations, or a direct solver's
+    /// factorisation and substitutions.
     pub solve: f64,
     pub quality: f64,
     /// The validity check of adaptive load stepping after each increment.

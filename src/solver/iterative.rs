@@ -241,6 +241,8 @@ pub struct IterativeSolver {
     kept: Option<Chebyshev>,
     /// Residual digits per iteration of the last solve with a fresh smoother.
     fresh_rate: Option<f64>,
+    /// Seconds spent building preconditioners ([`LinearSolver::setup_seconds`]).
+    setup_seconds: f64,
 }
 
 impl IterativeSolver {
@@ -283,6 +285,7 @@ impl IterativeSolver {
             lines: None,
             kept: None,
             fresh_rate: None,
+            setup_seconds: 0.0,
         })
     }
 
@@ -361,6 +364,7 @@ impl IterativeSolver {
         budget: Option<usize>,
         residual: Option<Vec<f64>>,
     ) -> std::result::Result<usize, Breakdown> {
+        let setup = std::time::Instant::now();
         let kept = self.kept.take().filter(|_| mode == Mode::Fast && budget.is_some());
         let reused = kept.is_some();
         let start = self.power.take();
@@ -386,6 +390,7 @@ impl IterativeSolver {
         if let Some(c) = &mut self.coarse {
             mode.update_coarse(c, exact, self.params.reuse_coarse)?;
         }
+        self.setup_seconds += setup.elapsed().as_secs_f64();
         // A warm-started estimate can miss a mode that the new matrix has
         // and the previous one had not (a nearly degenerate cell): a slow
         // solve compares it with a fresh one (not changing the iterates).
@@ -542,6 +547,10 @@ impl LinearSolver for IterativeSolver {
     /// preconditioner of the safe mode; then, for at most
     /// `fallback_max_dofs` unknowns, the direct solver. The stats say which
     /// one solved the system and why the first attempt failed.
+    fn setup_seconds(&self) -> f64 {
+        self.setup_seconds
+    }
+
     fn solve(&mut self, pattern: &SymmetricCsc, values: &[f64], rhs: &[f64], x: &mut [f64]) -> Result<SolveStats> {
         // A start that already meets the tolerance (a step retried from the
         // same matrix) needs no preconditioner.
@@ -669,6 +678,22 @@ mod tests {
         assert!(stats.iterations <= budget + alone, "{} iterations, budget {budget}, fresh {alone}", stats.iterations);
         assert!(kept(&solver).is_some_and(|e| e != first));
         assert!(relative_residual(&a, &far, &b, &x) <= rtol);
+    }
+
+    #[test]
+    fn the_preconditioner_set_up_is_timed_apart_and_only_when_one_is_built() {
+        let (a, v) = grid_laplacian(24, 1);
+        let b: Vec<f64> = (0..a.n).map(|i| (i as f64 * 0.3).cos()).collect();
+        let mut solver = IterativeSolver::try_new(&a, 1, Vec::new(), IterativeParams::default()).unwrap();
+        assert_eq!(solver.setup_seconds(), 0.0);
+        let mut x = vec![0.0; a.n];
+        let t = std::time::Instant::now();
+        assert!(solver.solve(&a, &v, &b, &mut x).unwrap().iterations > 0);
+        let (built, whole) = (solver.setup_seconds(), t.elapsed().as_secs_f64());
+        assert!(built > 0.0 && built < whole, "set-up {built} s of a {whole} s solve");
+        // From the solution: no iteration, no preconditioner, no set-up.
+        assert_eq!(solver.solve(&a, &v, &b, &mut x).unwrap().iterations, 0);
+        assert_eq!(solver.setup_seconds(), built);
     }
 
     #[test]

@@ -170,6 +170,13 @@ pub trait LinearSolver {
     /// On entry `x` holds the initial guess (iterative solvers start from it,
     /// direct ones ignore it); on exit, the solution.
     fn solve(&mut self, pattern: &SymmetricCsc, values: &[f64], rhs: &[f64], x: &mut [f64]) -> Result<SolveStats>;
+    /// Seconds its solves have spent so far building a preconditioner for
+    /// their matrix (the smoothers and coarse levels of PCG), which a run
+    /// reports as set-up rather than solving. A direct solver's
+    /// factorisation is its solve: 0.
+    fn setup_seconds(&self) -> f64 {
+        0.0
+    }
 }
 
 /// Which linear solver runs the increments.
