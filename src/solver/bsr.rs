@@ -4,17 +4,17 @@
 //! The V-cycle makes six of the seven products with the fine matrix in each
 //! PCG iteration ([`super::pmg`]), and those products are memory-bound. Stored
 //! by block rows of `b × b` blocks (BSR), one `u32` block-column index per
-//! block and `f32` values, a product reads 4.4 bytes per entry, against 12 or
-//! more for the double-precision lower triangle read in place by
+//! block and `f32` values, a product reads 4.4 bytes per entry, against 8.4
+//! for the double-precision lower triangle read in place by
 //! [`super::pcg::SymmetricOperator`]. The rows go in fixed chunks of nodes,
-//! one task each, and only the upper blocks (J, I ≥ J) are stored, read once:
-//! each adds to row J and, transposed, to row I when I lies in J's chunk.
-//! The blocks whose row I lies in a later chunk are also stored transposed,
-//! by row I, for that chunk to stream: at p = 4, 25 % of the off-diagonal
-//! blocks on the sphere cavity of bench/compare_gmsh.sh, 36 % on the
-//! built-in million-unknown mesh. Both triangles in full, as before, took
-//! 0.3 KB more per unknown there; the upper blocks alone, the crossing ones
-//! gathered from them, made its solve 15 % slower.
+//! one task each, and only the upper blocks (J, I ≥ J) are stored, each read
+//! once: it adds to row J and, transposed, to row I. A chunk sums into its
+//! own buffer, from its first row to the last its blocks reach, and the
+//! buffers are added up by rows afterwards ([`add_parts`]). Before, the
+//! blocks whose row I lay in a later chunk were stored a second time,
+//! transposed, by row I, for that chunk to stream (at p = 4, 25 % of the
+//! off-diagonal blocks on the sphere cavity of bench/compare_gmsh.sh, 36 %
+//! on the built-in million-unknown mesh): read twice, and held twice.
 //! Single precision is enough for a preconditioner (its entries are relative
 //! perturbations of 6e-8 of the matrix); PCG itself multiplies in double.
 //!
@@ -38,9 +38,7 @@ pub trait Operator: Sync {
 /// depend on the number of threads, so neither do the sums).
 const CHUNK_NODES: usize = 4096;
 
-/// A symmetric matrix stored by its upper block rows in single precision,
-/// the blocks that reach across chunks a second time, transposed, by the
-/// row of their column.
+/// A symmetric matrix stored by its upper block rows in single precision.
 #[derive(Debug, Clone)]
 pub struct BlockSym32 {
     /// Block size.
@@ -51,13 +49,8 @@ pub struct BlockSym32 {
     /// Upper blocks (J, I ≥ J) of row J, in the order of column J·b of the
     /// lower triangle (the diagonal block first).
     up: BlockRows,
-    /// Per node row I, the blocks (J, I) of `up` whose row J lies in an
-    /// earlier chunk than I: J and the block's index in `up` (for the
-    /// fill), J ascending.
-    cross_ptr: Vec<usize>,
-    cross: Vec<(u32, u32)>,
-    /// Those blocks transposed, `b²` values each, in the order of `cross`.
-    cross_val: Vec<f32>,
+    /// Per chunk, one past the last node row its blocks reach ([`chunk_reach`]).
+    reach: Vec<usize>,
     /// x padded to the lanes of a product, kept from one to the next.
     padded: Padded,
 }
@@ -149,6 +142,42 @@ impl BlockRows {
     }
 }
 
+/// Per chunk of `per` node rows, one past the last node row that its
+/// columns reach (at least the chunk's end): `columns` as from
+/// [`nodal_blocks`], each list ascending.
+pub(super) fn chunk_reach(columns: &[Vec<u32>], per: usize) -> Vec<usize> {
+    (0..columns.len().div_ceil(per))
+        .map(|t| {
+            let (first, end) = (t * per, ((t + 1) * per).min(columns.len()));
+            columns[first..end].iter().filter_map(|c| c.last()).map(|&i| i as usize + 1).fold(end, usize::max)
+        })
+        .collect()
+}
+
+/// y from the partial sums of a product by chunks of `per` node rows:
+/// `parts[t]` holds, `L` lanes per node, the sums of chunk t's columns for
+/// the rows from its first on (its own rows, then those of later chunks
+/// that its columns reach). Each row adds its own chunk's sum, then the
+/// earlier chunks' in order: the same sums whatever the threads.
+pub(super) fn add_parts<const B: usize, const L: usize>(parts: &[Vec<f64>], per: usize, y: &mut [f64]) {
+    y.par_chunks_mut(per * B).enumerate().for_each(|(u, yc)| {
+        let first = u * per;
+        for (yn, p) in yc.chunks_exact_mut(B).zip(parts[u].chunks_exact(L)) {
+            yn.copy_from_slice(&p[..B]);
+        }
+        for (t, part) in parts[..u].iter().enumerate() {
+            let from = (first - t * per) * L;
+            if part.len() > from {
+                for (yn, p) in yc.chunks_exact_mut(B).zip(part[from..].chunks_exact(L)) {
+                    for (y, v) in yn.iter_mut().zip(p) {
+                        *y += v;
+                    }
+                }
+            }
+        }
+    });
+}
+
 /// The node lists of the block columns of `pattern`, a lower triangle whose
 /// unknowns come in consecutive groups of `b` (one group per node) and whose
 /// column (J, j) lists, in order, rows (J, j..b) and then the `b` rows of
@@ -215,28 +244,8 @@ impl BlockSym32 {
                 format!("block matrix: {} blocks do not fit 32-bit indices", up.col.len()),
             ));
         }
-        // Blocks (J, I) with I past the end of J's chunk, listed by I.
-        let past = |j: usize| upper[j][1..].iter().enumerate().filter(move |&(_, &i)| i as usize >= (j / chunk + 1) * chunk);
-        let mut cross_ptr = vec![0usize; n_blocks + 1];
-        for j in 0..n_blocks {
-            for (_, &i) in past(j) {
-                cross_ptr[i as usize + 1] += 1;
-            }
-        }
-        for i in 0..n_blocks {
-            cross_ptr[i + 1] += cross_ptr[i];
-        }
-        let mut fill = cross_ptr.clone();
-        let mut cross = vec![(0u32, 0u32); cross_ptr[n_blocks]];
-        for j in 0..n_blocks {
-            for (t, &i) in past(j) {
-                let k = &mut fill[i as usize];
-                cross[*k] = (j as u32, (up.ptr[j] + 1 + t) as u32);
-                *k += 1;
-            }
-        }
-        let cross_val = vec![0.0; cross.len() * b * b + OVERREAD];
-        Ok(BlockSym32 { b, n_blocks, chunk, up, cross_ptr, cross, cross_val, padded: Padded::default() })
+        let reach = chunk_reach(upper, chunk);
+        Ok(BlockSym32 { b, n_blocks, chunk, up, reach, padded: Padded::default() })
     }
 
     /// Numeric fill from the lower-triangle `values` of a matrix on the pattern
@@ -260,44 +269,44 @@ impl BlockSym32 {
                 }
             }
         });
-        let (up, cross) = (&self.up.val, &self.cross);
-        self.cross_val.par_chunks_mut(bb).zip(cross.par_iter()).for_each(|(blk, &(_, k))| {
-            let from = &up[k as usize * bb..][..bb];
-            for r in 0..b {
-                for c in 0..b {
-                    blk[r * b + c] = from[c * b + r];
-                }
-            }
-        });
     }
 
     /// Bytes held (indices and values).
     #[cfg(test)]
     pub fn memory_bytes(&self) -> usize {
-        let up = self.up.ptr.len() * 8 + self.up.col.len() * 4 + self.up.val.len() * 4;
-        up + self.cross_ptr.len() * 8 + self.cross.len() * 8 + self.cross_val.len() * 4
+        self.up.ptr.len() * 8 + self.up.col.len() * 4 + self.up.val.len() * 4
     }
 
     /// y = A x with blocks of `B` and rows of `L` lanes (`L` ≥ `B`, the
-    /// vector width the loop works in, below).
+    /// vector width the loop works in, below): each chunk's sums, then
+    /// added up by rows ([`add_parts`]).
     fn apply_block<const B: usize, const L: usize>(&self, x: &[f64], y: &mut [f64]) {
         let padded = self.padded.fill::<B, L>(x);
         let padded = &padded[..];
-        y.par_chunks_mut(self.chunk * B).enumerate().for_each(|(t, yc)| {
-            #[cfg(target_arch = "x86_64")]
-            if B == 3 && L == 4 && std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the processor supports AVX2 (checked just above).
-                return unsafe { avx2::chunk_rows_3(self, t * self.chunk, padded, yc) };
-            }
-            crate::linalg::with_avx2(
-                #[inline(always)]
-                || self.chunk_rows::<B, L>(t * self.chunk, padded, yc),
-            )
-        });
+        let parts: Vec<Vec<f64>> = (0..self.reach.len())
+            .into_par_iter()
+            .map(|t| {
+                let first = t * self.chunk;
+                let mut part = vec![0.0; (self.reach[t] - first) * L];
+                #[cfg(target_arch = "x86_64")]
+                if B == 3 && L == 4 && std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the processor supports AVX2 (checked just above).
+                    unsafe { avx2::chunk_rows_3(self, first, padded, &mut part) };
+                    return part;
+                }
+                crate::linalg::with_avx2(
+                    #[inline(always)]
+                    || self.chunk_rows::<B, L>(first, padded, &mut part),
+                );
+                part
+            })
+            .collect();
+        add_parts::<B, L>(&parts, self.chunk, y);
     }
 
-    /// y of the chunk of node rows from `first` on (as many as `y` holds),
-    /// `x` padded to `L` entries per node (the last `L − B` zero).
+    /// The sums of the block rows of the chunk from node `first` on, `x`
+    /// padded to `L` entries per node (the last `L − B` zero), into `part`:
+    /// `L` lanes per node row from `first` to the chunk's reach.
     ///
     /// A block's row r is read as the `L` values from its start (reaching
     /// into the next row, or the padding after the last block): for the
@@ -311,34 +320,11 @@ impl BlockSym32 {
     /// 866,038 upper blocks), 5.1 ms against 7.4 ms for the 3 × 3 loops
     /// before; the product is bound by memory traffic from there.
     #[inline(always)]
-    fn chunk_rows<const B: usize, const L: usize>(&self, first: usize, x: &[f64], y: &mut [f64]) {
-        let nodes = y.len() / B;
-        let end = first + nodes;
+    fn chunk_rows<const B: usize, const L: usize>(&self, first: usize, x: &[f64], part: &mut [f64]) {
+        let end = (first + self.chunk).min(self.n_blocks);
         let bb = B * B;
         let xv = |i: usize| -> [f64; L] { x[i * L..][..L].try_into().expect("L lanes") };
-        // Σ_r over lanes 0..B of t_r, into out.
-        let reduce = |t: &[[f64; L]; B], out: &mut [f64; L]| {
-            for (o, tr) in out.iter_mut().zip(t) {
-                *o += sum_lanes(tr, B);
-            }
-        };
-        let mut yl = vec![[0.0f64; L]; nodes];
-        // The blocks of earlier chunks' rows, transposed.
-        for (di, yi) in yl.iter_mut().enumerate() {
-            let i = first + di;
-            let mut t = [[0.0f64; L]; B];
-            for k in self.cross_ptr[i]..self.cross_ptr[i + 1] {
-                let (a, xj) = (&self.cross_val[k * bb..][..bb + L - B], xv(self.cross[k].0 as usize));
-                for r in 0..B {
-                    for l in 0..L {
-                        t[r][l] += f64::from(a[r * B + l]) * xj[l];
-                    }
-                }
-            }
-            reduce(&t, yi);
-        }
-        // The chunk's own rows: each block to its row and, transposed, to
-        // the row of its column when that lies in the chunk.
+        // Each block to its row and, transposed, to the row of its column.
         let up = &self.up;
         for j in first..end {
             let xj = xv(j);
@@ -351,8 +337,8 @@ impl BlockSym32 {
                         t[r][l] += f64::from(a[r * B + l]) * xi[l];
                     }
                 }
-                if i != j && i < end {
-                    let yi = &mut yl[i - first];
+                if i != j {
+                    let yi = &mut part[(i - first) * L..][..L];
                     for r in 0..B {
                         for l in 0..L {
                             yi[l] += f64::from(a[r * B + l]) * xj[r];
@@ -360,10 +346,9 @@ impl BlockSym32 {
                     }
                 }
             }
-            reduce(&t, &mut yl[j - first]);
-        }
-        for (yi, v) in y.chunks_exact_mut(B).zip(&yl) {
-            yi.copy_from_slice(&v[..B]);
+            for (o, tr) in part[(j - first) * L..][..B].iter_mut().zip(&t) {
+                *o += sum_lanes(tr, B);
+            }
         }
     }
 }
@@ -382,22 +367,8 @@ mod avx2 {
     const PF: usize = 2048;
 
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn chunk_rows_3(m: &BlockSym32, first: usize, x: &[f64], y: &mut [f64]) {
-        let nodes = y.len() / 3;
-        let end = first + nodes;
-        let mut yl = vec![0.0f64; nodes * 4];
-        for di in 0..nodes {
-            let i = first + di;
-            let mut t = [_mm256_setzero_pd(); 3];
-            for k in m.cross_ptr[i]..m.cross_ptr[i + 1] {
-                let a = &m.cross_val[k * 9..];
-                let xj = load(&x[m.cross[k].0 as usize * 4..]);
-                for (r, t) in t.iter_mut().enumerate() {
-                    *t = _mm256_add_pd(*t, _mm256_mul_pd(load_f32(&a[r * 3..]), xj));
-                }
-            }
-            add_sums(&mut yl[di * 4..], &t);
-        }
+    pub(super) unsafe fn chunk_rows_3(m: &BlockSym32, first: usize, x: &[f64], part: &mut [f64]) {
+        let end = (first + m.chunk).min(m.n_blocks);
         let up = &m.up;
         for j in first..end {
             let xb = [_mm256_set1_pd(x[j * 4]), _mm256_set1_pd(x[j * 4 + 1]), _mm256_set1_pd(x[j * 4 + 2])];
@@ -408,13 +379,10 @@ mod avx2 {
                 // A prefetch past the end of the values is harmless (it never faults).
                 _mm_prefetch(a.as_ptr().wrapping_add(PF) as *const i8, _MM_HINT_T0);
                 let a = [load_f32(a), load_f32(&a[3..]), load_f32(&a[6..])];
-                let to = (i != j && i < end).then(|| (&mut yl[(i - first) * 4..], &xb));
+                let to = (i != j).then(|| (&mut part[(i - first) * 4..], &xb));
                 block(&mut t, &a, load(&x[i * 4..]), to);
             }
-            add_sums(&mut yl[(j - first) * 4..], &t);
-        }
-        for (yi, v) in y.chunks_exact_mut(3).zip(yl.chunks_exact(4)) {
-            yi.copy_from_slice(&v[..3]);
+            add_sums(&mut part[(j - first) * 4..], &t);
         }
     }
 }
@@ -470,7 +438,7 @@ mod tests {
             for chunk in [CHUNK_NODES, 5, 1] {
                 let mut m = BlockSym32::with_chunks(&nodal_blocks(&pattern, b).unwrap(), b, chunk).unwrap();
                 m.update(&pattern, &values);
-                assert_eq!(m.cross.is_empty(), chunk == CHUNK_NODES, "b = {b}, chunk {chunk}");
+                assert_eq!(m.reach.len(), 23usize.div_ceil(chunk), "b = {b}, chunk {chunk}");
                 let mut y = vec![0.0; pattern.n];
                 m.apply_into(&x, &mut y);
                 for (p, q) in y.iter().zip(&want) {
@@ -483,13 +451,22 @@ mod tests {
                 for (p, v) in padded.chunks_exact_mut(lanes).zip(x.chunks_exact(b)) {
                     p[..b].copy_from_slice(v);
                 }
+                let parts: Vec<Vec<f64>> = (0..m.reach.len())
+                    .map(|t| {
+                        let mut part = vec![0.0; (m.reach[t] - t * chunk) * lanes];
+                        match b {
+                            1 => m.chunk_rows::<1, 1>(t * chunk, &padded, &mut part),
+                            2 => m.chunk_rows::<2, 2>(t * chunk, &padded, &mut part),
+                            _ => m.chunk_rows::<3, 4>(t * chunk, &padded, &mut part),
+                        }
+                        part
+                    })
+                    .collect();
                 let mut portable = vec![0.0; pattern.n];
-                for (t, yc) in portable.chunks_mut(chunk * b).enumerate() {
-                    match b {
-                        1 => m.chunk_rows::<1, 1>(t * chunk, &padded, yc),
-                        2 => m.chunk_rows::<2, 2>(t * chunk, &padded, yc),
-                        _ => m.chunk_rows::<3, 4>(t * chunk, &padded, yc),
-                    }
+                match b {
+                    1 => add_parts::<1, 1>(&parts, chunk, &mut portable),
+                    2 => add_parts::<2, 2>(&parts, chunk, &mut portable),
+                    _ => add_parts::<3, 4>(&parts, chunk, &mut portable),
                 }
                 assert!(y.iter().zip(&portable).all(|(p, q)| p.to_bits() == q.to_bits()), "b = {b}, chunk {chunk}");
             }

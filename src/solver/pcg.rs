@@ -23,10 +23,12 @@ use crate::{Error, Result, SolverFailure};
 /// products and solves with the diagonal blocks.
 const CHUNK: usize = 2048;
 
-/// Rows per parallel task of the product with the stored lower triangle:
-/// the larger, the fewer blocks read through the symbolic transpose (a
-/// third of them at 2,048 nodes per chunk on the sphere cavity at p = 4, a
-/// quarter at 4,096).
+/// Rows per parallel task of the product with the stored lower triangle.
+/// In nodal-block layout each task sums into its own buffer, from its first
+/// row to the last its columns reach ([`super::bsr::add_parts`]); entry by
+/// entry, the blocks left of the diagonal whose column lies in an earlier
+/// chunk are read through the symbolic transpose (the larger the chunk, the
+/// fewer).
 const PRODUCT_CHUNK: usize = 12288;
 
 /// The transpose structure of a lower-triangle pattern, for the rows of the
@@ -51,6 +53,9 @@ pub struct SymmetricOperator {
     /// Position of row I·b in column J·b, from the column's start: entry
     /// (I·b + ii, J·b + jj) is at col_ptr[J·b + jj] + offset − jj + ii.
     lower_off: Vec<u32>,
+    /// Per chunk of [`PRODUCT_CHUNK`] rows in nodal-block layout, one past
+    /// the last node row its columns reach ([`super::bsr::chunk_reach`]).
+    reach: Vec<usize>,
     /// x padded for the products by blocks.
     padded: super::bsr::Padded,
 }
@@ -102,7 +107,17 @@ impl SymmetricOperator {
                 *k += 1;
             }
         }
-        Ok(SymmetricOperator { n, nnz: pattern.nnz(), b, lower_ptr, lower_col, lower_off, padded: Default::default() })
+        let reach = if b > 1 { super::bsr::chunk_reach(&columns, PRODUCT_CHUNK / b) } else { Vec::new() };
+        Ok(SymmetricOperator {
+            n,
+            nnz: pattern.nnz(),
+            b,
+            lower_ptr,
+            lower_col,
+            lower_off,
+            reach,
+            padded: Default::default(),
+        })
     }
 
     /// The matrix of this pattern with lower-triangle `values`.
@@ -201,59 +216,55 @@ impl<'a> WithValues<'a> {
 
     /// [`Self::matvec_nodes`] for a pattern in nodal-block layout, by
     /// blocks in vectors of `L` ≥ `B` lanes: the loops of
-    /// [`Self::chunk_lanes`] on `x` padded to `L` entries per node.
+    /// [`Self::chunk_lanes`] on `x` padded to `L` entries per node, each
+    /// chunk's sums then added up by rows ([`super::bsr::add_parts`]).
     fn matvec_lanes<const B: usize, const L: usize>(&self, x: &[f64], y: &mut [f64]) {
         let padded = self.op.padded.fill::<B, L>(x);
         let padded = &padded[..];
         let per = PRODUCT_CHUNK / B;
-        y.par_chunks_mut(per * B).enumerate().for_each(|(t, yc)| {
-            #[cfg(target_arch = "x86_64")]
-            if B == 3 && L == 4 && std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the processor supports AVX2 (checked just above).
-                return unsafe { avx2::chunk_3(self, t * per, padded, yc) };
-            }
-            self.chunk_lanes::<B, L>(t * per, padded, yc)
-        });
+        let parts: Vec<Vec<f64>> = (0..self.op.reach.len())
+            .into_par_iter()
+            .map(|t| {
+                let mut part = vec![0.0; (self.op.reach[t] - t * per) * L];
+                #[cfg(target_arch = "x86_64")]
+                if B == 3 && L == 4 && std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the processor supports AVX2 (checked just above).
+                    unsafe { avx2::chunk_3(self, t * per, per, padded, &mut part) };
+                    return part;
+                }
+                self.chunk_lanes::<B, L>(t * per, per, padded, &mut part);
+                part
+            })
+            .collect();
+        super::bsr::add_parts::<B, L>(&parts, per, y);
     }
 
-    /// y of the chunk of node rows from `first` on (as many as `y` holds),
-    /// for a pattern in nodal-block layout and `x` padded to `L` entries per
-    /// node (zeros past `B`).
+    /// The sums of the columns of the chunk of `per` node rows from `first`
+    /// on (fewer at the end), for a pattern in nodal-block layout and `x`
+    /// padded to `L` entries per node (zeros past `B`), into `part`: `L`
+    /// lanes per node row from `first` to the chunk's reach.
     ///
     /// Column jj of a block (I, J), I > J, is `B` consecutive values of
     /// column J·B + jj, read as the `L` from its start (reaching into the
     /// column's next block or the next column, which exists since a later
     /// node's columns follow). To row J it adds, lane by lane, t_jj +=
-    /// col_jj ⊙ x_I, summed over lanes 0..B once per node; to row I (in
-    /// the chunk) Σ_jj x_J[jj] col_jj, whose lanes past `B` are dropped. The
-    /// blocks of rows in the chunk whose column lies in an earlier chunk
-    /// come first, through the symbolic transpose. The diagonal block goes
-    /// entry by entry.
-    pub(super) fn chunk_lanes<const B: usize, const L: usize>(&self, first: usize, x: &[f64], y: &mut [f64]) {
-        let (op, cp, ri, values) = (self.op, &self.pattern.col_ptr, &self.pattern.row_idx, self.values);
-        let end = first + y.len() / B;
+    /// col_jj ⊙ x_I, summed over lanes 0..B once per node; to row I
+    /// Σ_jj x_J[jj] col_jj, whose lanes past `B` are dropped. Each stored
+    /// value is read once, in order. The diagonal block goes entry by entry.
+    pub(super) fn chunk_lanes<const B: usize, const L: usize>(
+        &self,
+        first: usize,
+        per: usize,
+        x: &[f64],
+        part: &mut [f64],
+    ) {
+        let (cp, ri, values) = (&self.pattern.col_ptr, &self.pattern.row_idx, self.values);
+        let end = (first + per).min(self.op.n / B);
         let xv = |i: usize| -> [f64; L] { x[i * L..][..L].try_into().expect("L lanes") };
         let col = |at: usize| -> [f64; L] { values[at..][..L].try_into().expect("L lanes") };
-        let mut yl = vec![[0.0f64; L]; end - first];
-        for (di, yi) in yl.iter_mut().enumerate() {
-            let node = first + di;
-            for k in op.lower_ptr[node]..op.lower_ptr[node + 1] {
-                let (j, off) = (op.lower_col[k] as usize, op.lower_off[k] as usize);
-                if j >= first {
-                    break;
-                }
-                let xj = xv(j);
-                for jj in 0..B {
-                    let a = col(cp[j * B + jj] + off - jj);
-                    for l in 0..L {
-                        yi[l] += a[l] * xj[jj];
-                    }
-                }
-            }
-        }
         for j in first..end {
             let xj = xv(j);
-            let yj = &mut yl[j - first];
+            let yj = &mut part[(j - first) * L..][..L];
             // The diagonal block: (J·B + ii, J·B + jj), ii ≥ jj, at cp[J·B + jj] + ii − jj.
             for jj in 0..B {
                 for ii in jj..B {
@@ -275,22 +286,17 @@ impl<'a> WithValues<'a> {
                         t[jj][l] += a[jj][l] * xi[l];
                     }
                 }
-                if i < end {
-                    let yi = &mut yl[i - first];
-                    for jj in 0..B {
-                        for l in 0..L {
-                            yi[l] += a[jj][l] * xj[jj];
-                        }
+                let yi = &mut part[(i - first) * L..][..L];
+                for jj in 0..B {
+                    for l in 0..L {
+                        yi[l] += a[jj][l] * xj[jj];
                     }
                 }
             }
-            let yj = &mut yl[j - first];
+            let yj = &mut part[(j - first) * L..][..L];
             for jj in 0..B {
                 yj[jj] += super::bsr::sum_lanes(&t[jj], B);
             }
-        }
-        for (yi, v) in y.chunks_exact_mut(B).zip(&yl) {
-            yi.copy_from_slice(&v[..B]);
         }
     }
 
@@ -360,29 +366,13 @@ mod avx2 {
     const PF: usize = 768;
 
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn chunk_3(a: &WithValues, first: usize, x: &[f64], y: &mut [f64]) {
-        let (op, cp, ri, values) = (a.op, &a.pattern.col_ptr, &a.pattern.row_idx, a.values);
-        let end = first + y.len() / 3;
-        let mut yl = vec![0.0f64; (end - first) * 4];
-        for di in 0..end - first {
-            let node = first + di;
-            let mut v = load(&yl[di * 4..]);
-            for k in op.lower_ptr[node]..op.lower_ptr[node + 1] {
-                let (j, off) = (op.lower_col[k] as usize, op.lower_off[k] as usize);
-                if j >= first {
-                    break;
-                }
-                for jj in 0..3 {
-                    let c = load(&values[cp[j * 3 + jj] + off - jj..]);
-                    v = _mm256_add_pd(v, _mm256_mul_pd(c, _mm256_set1_pd(x[j * 4 + jj])));
-                }
-            }
-            _mm256_storeu_pd(yl[di * 4..][..4].as_mut_ptr(), v);
-        }
+    pub(super) unsafe fn chunk_3(a: &WithValues, first: usize, per: usize, x: &[f64], part: &mut [f64]) {
+        let (cp, ri, values) = (&a.pattern.col_ptr, &a.pattern.row_idx, a.values);
+        let end = (first + per).min(a.op.n / 3);
         for j in first..end {
             let xb = [_mm256_set1_pd(x[j * 4]), _mm256_set1_pd(x[j * 4 + 1]), _mm256_set1_pd(x[j * 4 + 2])];
             {
-                let yj = &mut yl[(j - first) * 4..][..3];
+                let yj = &mut part[(j - first) * 4..][..3];
                 for jj in 0..3 {
                     for ii in jj..3 {
                         let v = values[cp[j * 3 + jj] + ii - jj];
@@ -407,13 +397,9 @@ mod avx2 {
                     load(&values[cp[j * 3 + 1] + m * 3 - 1..]),
                     load(&values[cp[j * 3 + 2] + m * 3 - 2..]),
                 ];
-                let to = (i < end).then(|| (&mut yl[(i - first) * 4..], &xb));
-                block(&mut t, &c, load(&x[i * 4..]), to);
+                block(&mut t, &c, load(&x[i * 4..]), Some((&mut part[(i - first) * 4..], &xb)));
             }
-            add_sums(&mut yl[(j - first) * 4..], &t);
-        }
-        for (yi, v) in y.chunks_exact_mut(3).zip(yl.chunks_exact(4)) {
-            yi.copy_from_slice(&v[..3]);
+            add_sums(&mut part[(j - first) * 4..], &t);
         }
     }
 }
@@ -981,10 +967,11 @@ pub(crate) mod tests {
         }
     }
 
-    /// Matrices of more than one chunk of the product: blocks whose column
-    /// lies in an earlier chunk are read through the symbolic transpose, the
-    /// others while reading the chunk's own columns; the sums do not depend
-    /// on the threads. With single unknowns, some columns lack their
+    /// Matrices of more than one chunk of the product: by nodal blocks, a
+    /// chunk's columns add to later chunks' rows through its own buffer;
+    /// entry by entry, the entries whose column lies in an earlier chunk are
+    /// read through the symbolic transpose. The sums do not depend on the
+    /// threads. With single unknowns, some columns lack their
     /// diagonal entry.
     #[test]
     fn the_product_by_chunks_matches_the_serial_product_for_any_thread_count() {
@@ -1028,12 +1015,20 @@ pub(crate) mod tests {
                     p[..block].copy_from_slice(v);
                 }
                 let per = PRODUCT_CHUNK / block;
+                let parts: Vec<Vec<f64>> = (0..op.reach.len())
+                    .map(|t| {
+                        let mut part = vec![0.0; (op.reach[t] - t * per) * lanes];
+                        match block {
+                            2 => m.chunk_lanes::<2, 2>(t * per, per, &padded, &mut part),
+                            _ => m.chunk_lanes::<3, 4>(t * per, per, &padded, &mut part),
+                        }
+                        part
+                    })
+                    .collect();
                 let mut portable = vec![0.0; a.n];
-                for (t, yc) in portable.chunks_mut(per * block).enumerate() {
-                    match block {
-                        2 => m.chunk_lanes::<2, 2>(t * per, &padded, yc),
-                        _ => m.chunk_lanes::<3, 4>(t * per, &padded, yc),
-                    }
+                match block {
+                    2 => crate::solver::bsr::add_parts::<2, 2>(&parts, per, &mut portable),
+                    _ => crate::solver::bsr::add_parts::<3, 4>(&parts, per, &mut portable),
                 }
                 assert!(y.iter().zip(&portable).all(|(p, q)| p.to_bits() == q.to_bits()), "block {block}");
             }
