@@ -154,6 +154,28 @@ pub(super) fn chunk_reach(columns: &[Vec<u32>], per: usize) -> Vec<usize> {
         .collect()
 }
 
+/// y = A x by chunks of `per` node rows: `chunk(first, part)` sums the
+/// columns of the chunk from node `first` into `part`, `L` lanes per node
+/// row from `first` to the chunk's reach (`reach`, [`chunk_reach`]); the
+/// parts are then added up by rows ([`add_parts`]).
+pub(super) fn product_by_chunks<const B: usize, const L: usize>(
+    reach: &[usize],
+    per: usize,
+    y: &mut [f64],
+    chunk: impl Fn(usize, &mut [f64]) + Sync,
+) {
+    let parts: Vec<Vec<f64>> = reach
+        .par_iter()
+        .enumerate()
+        .map(|(t, &r)| {
+            let mut part = vec![0.0; (r - t * per) * L];
+            chunk(t * per, &mut part);
+            part
+        })
+        .collect();
+    add_parts::<B, L>(&parts, per, y);
+}
+
 /// y from the partial sums of a product by chunks of `per` node rows:
 /// `parts[t]` holds, `L` lanes per node, the sums of chunk t's columns for
 /// the rows from its first on (its own rows, then those of later chunks
@@ -283,25 +305,17 @@ impl BlockSym32 {
     fn apply_block<const B: usize, const L: usize>(&self, x: &[f64], y: &mut [f64]) {
         let padded = self.padded.fill::<B, L>(x);
         let padded = &padded[..];
-        let parts: Vec<Vec<f64>> = (0..self.reach.len())
-            .into_par_iter()
-            .map(|t| {
-                let first = t * self.chunk;
-                let mut part = vec![0.0; (self.reach[t] - first) * L];
-                #[cfg(target_arch = "x86_64")]
-                if B == 3 && L == 4 && std::arch::is_x86_feature_detected!("avx2") {
-                    // SAFETY: the processor supports AVX2 (checked just above).
-                    unsafe { avx2::chunk_rows_3(self, first, padded, &mut part) };
-                    return part;
-                }
-                crate::linalg::with_avx2(
-                    #[inline(always)]
-                    || self.chunk_rows::<B, L>(first, padded, &mut part),
-                );
-                part
-            })
-            .collect();
-        add_parts::<B, L>(&parts, self.chunk, y);
+        product_by_chunks::<B, L>(&self.reach, self.chunk, y, |first, part| {
+            #[cfg(target_arch = "x86_64")]
+            if B == 3 && L == 4 && std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the processor supports AVX2 (checked just above).
+                return unsafe { avx2::chunk_rows_3(self, first, padded, part) };
+            }
+            crate::linalg::with_avx2(
+                #[inline(always)]
+                || self.chunk_rows::<B, L>(first, padded, part),
+            )
+        });
     }
 
     /// The sums of the block rows of the chunk from node `first` on, `x`
@@ -451,22 +465,11 @@ mod tests {
                 for (p, v) in padded.chunks_exact_mut(lanes).zip(x.chunks_exact(b)) {
                     p[..b].copy_from_slice(v);
                 }
-                let parts: Vec<Vec<f64>> = (0..m.reach.len())
-                    .map(|t| {
-                        let mut part = vec![0.0; (m.reach[t] - t * chunk) * lanes];
-                        match b {
-                            1 => m.chunk_rows::<1, 1>(t * chunk, &padded, &mut part),
-                            2 => m.chunk_rows::<2, 2>(t * chunk, &padded, &mut part),
-                            _ => m.chunk_rows::<3, 4>(t * chunk, &padded, &mut part),
-                        }
-                        part
-                    })
-                    .collect();
                 let mut portable = vec![0.0; pattern.n];
                 match b {
-                    1 => add_parts::<1, 1>(&parts, chunk, &mut portable),
-                    2 => add_parts::<2, 2>(&parts, chunk, &mut portable),
-                    _ => add_parts::<3, 4>(&parts, chunk, &mut portable),
+                    1 => product_by_chunks::<1, 1>(&m.reach, chunk, &mut portable, |f, p| m.chunk_rows::<1, 1>(f, &padded, p)),
+                    2 => product_by_chunks::<2, 2>(&m.reach, chunk, &mut portable, |f, p| m.chunk_rows::<2, 2>(f, &padded, p)),
+                    _ => product_by_chunks::<3, 4>(&m.reach, chunk, &mut portable, |f, p| m.chunk_rows::<3, 4>(f, &padded, p)),
                 }
                 assert!(y.iter().zip(&portable).all(|(p, q)| p.to_bits() == q.to_bits()), "b = {b}, chunk {chunk}");
             }

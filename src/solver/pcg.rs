@@ -222,21 +222,14 @@ impl<'a> WithValues<'a> {
         let padded = self.op.padded.fill::<B, L>(x);
         let padded = &padded[..];
         let per = PRODUCT_CHUNK / B;
-        let parts: Vec<Vec<f64>> = (0..self.op.reach.len())
-            .into_par_iter()
-            .map(|t| {
-                let mut part = vec![0.0; (self.op.reach[t] - t * per) * L];
-                #[cfg(target_arch = "x86_64")]
-                if B == 3 && L == 4 && std::arch::is_x86_feature_detected!("avx2") {
-                    // SAFETY: the processor supports AVX2 (checked just above).
-                    unsafe { avx2::chunk_3(self, t * per, per, padded, &mut part) };
-                    return part;
-                }
-                self.chunk_lanes::<B, L>(t * per, per, padded, &mut part);
-                part
-            })
-            .collect();
-        super::bsr::add_parts::<B, L>(&parts, per, y);
+        super::bsr::product_by_chunks::<B, L>(&self.op.reach, per, y, |first, part| {
+            #[cfg(target_arch = "x86_64")]
+            if B == 3 && L == 4 && std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the processor supports AVX2 (checked just above).
+                return unsafe { avx2::chunk_3(self, first, per, padded, part) };
+            }
+            self.chunk_lanes::<B, L>(first, per, padded, part)
+        });
     }
 
     /// The sums of the columns of the chunk of `per` node rows from `first`
@@ -1015,20 +1008,14 @@ pub(crate) mod tests {
                     p[..block].copy_from_slice(v);
                 }
                 let per = PRODUCT_CHUNK / block;
-                let parts: Vec<Vec<f64>> = (0..op.reach.len())
-                    .map(|t| {
-                        let mut part = vec![0.0; (op.reach[t] - t * per) * lanes];
-                        match block {
-                            2 => m.chunk_lanes::<2, 2>(t * per, per, &padded, &mut part),
-                            _ => m.chunk_lanes::<3, 4>(t * per, per, &padded, &mut part),
-                        }
-                        part
-                    })
-                    .collect();
                 let mut portable = vec![0.0; a.n];
                 match block {
-                    2 => crate::solver::bsr::add_parts::<2, 2>(&parts, per, &mut portable),
-                    _ => crate::solver::bsr::add_parts::<3, 4>(&parts, per, &mut portable),
+                    2 => crate::solver::bsr::product_by_chunks::<2, 2>(&op.reach, per, &mut portable, |f, p| {
+                        m.chunk_lanes::<2, 2>(f, per, &padded, p)
+                    }),
+                    _ => crate::solver::bsr::product_by_chunks::<3, 4>(&op.reach, per, &mut portable, |f, p| {
+                        m.chunk_lanes::<3, 4>(f, per, &padded, p)
+                    }),
                 }
                 assert!(y.iter().zip(&portable).all(|(p, q)| p.to_bits() == q.to_bits()), "block {block}");
             }
