@@ -468,7 +468,11 @@ fn the_elastic_stage_as_one_part_of_a_distributed_run_is_the_serial_one() {
     assert!(!serial.report.step_backs.is_empty() && serial.report.elastic_stop.is_some());
     assert_eq!(serial.report.step_backs, part.report.step_backs);
     assert_eq!(serial.report.load_fractions, part.report.load_fractions);
-    assert_eq!(serial.mesh.coords, part.mesh.coords);
+    // The same to rounding: the serial run solves its later increments from
+    // the cells' products, a distributed one from the assembled matrix.
+    assert!(serial.report.solves.by_products > 0 && part.report.solves.by_products == 0);
+    let off = serial.mesh.coords.iter().zip(&part.mesh.coords).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    assert!(off < 1e-9, "{off:e}");
     // The other formulations are refused, not run serially.
     opts.formulation = Formulation::Cil;
     opts.material = hocurve::material::MaterialModel::NeoHookean;

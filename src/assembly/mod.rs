@@ -16,6 +16,7 @@ mod condense;
 mod hyperelastic;
 mod kernel;
 mod lines;
+mod matrix_free;
 pub mod transfer;
 
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -433,6 +434,11 @@ pub trait ElementKernel: Sync {
         re: Option<&mut [f64]>,
         ws: &mut Self::Workspace,
     ) -> std::result::Result<(), f64>;
+    /// The linear elastic kernel itself, when this is it: its operator can
+    /// be applied cell by cell without the matrix ([`System::cell_operator`]).
+    fn cell_kernel(&self) -> Option<&LinearElasticKernel> {
+        None
+    }
     /// The material, when this is the linear elastic kernel of
     /// [`LinearElasticKernel::for_nodes`] (which a distributed elastic
     /// stage builds again on each process).

@@ -11,8 +11,8 @@ use crate::mesh::HighOrderMesh;
 use crate::quality;
 use crate::reference::{LagrangeBasis, NodeSet};
 use crate::solver::{
-    DirectOrdering, DirectSolver, ExternalAdapter, IterativeParams, IterativeSolver, LinearSolver, SolveLog,
-    SolverChoice,
+    DirectOrdering, DirectSolver, ExternalAdapter, FallbackReason, IterativeParams, IterativeSolver, LinearSolver,
+    ProductSolve, SolveLog, SolverChoice,
 };
 use crate::{Error, Result, SolverFailure};
 
@@ -619,6 +619,23 @@ struct Buffers {
     saved: Vec<f64>,
 }
 
+/// What an attempt to solve an increment from its products spent before
+/// the matrix was needed: its iterations, and the breakdown if any.
+#[derive(Debug, Clone, Copy, Default)]
+struct Spent {
+    iterations: usize,
+    breakdown: Option<FallbackReason>,
+}
+
+/// A failed assembly (or cell operator) as a rejection of the increment:
+/// an invalid cell at its start, or a fatal error.
+fn rejection(e: Error) -> Failure {
+    match e {
+        Error::InvalidElement { cell, message } => Failure::AtStart { cell, detail: message },
+        e => Failure::Fatal(e),
+    }
+}
+
 /// What one increment needs besides the geometry.
 struct IncrementContext<'a, K> {
     /// The last assembled system; its buffers are reused.
@@ -689,15 +706,66 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
         timings: &mut Timings,
         out: &mut IncrementsReport,
     ) -> std::result::Result<f64, Failure> {
+        let spent = match self.step_by_products(mesh, bufs, timings, out)? {
+            Ok(r0) => return Ok(r0),
+            Err(spent) => spent,
+        };
         let t = Instant::now();
         // det J ≤ 0 here is at the start geometry: no split of this increment helps.
         let assembled = self.system.assemble(mesh, &mesh.coords, self.kernel, &bufs.step, self.residual);
         self.agree_on_assembly(assembled)?;
         timings.assembly += t.elapsed().as_secs_f64();
         let r0 = self.system.rhs_norm().max(f64::MIN_POSITIVE);
-        self.solve(mesh, &bufs.step, &mut bufs.u, timings, out)?;
+        self.solve(mesh, &bufs.step, &mut bufs.u, spent, timings, out)?;
         self.system.dofs().add_to(&mut mesh.coords, &bufs.u, Some(&bufs.step));
         Ok(r0)
+    }
+
+    /// The linear step of an ILE increment without its matrix, when the
+    /// solver keeps a preconditioner from an earlier one: the products and
+    /// the right-hand side cell by cell ([`System::cell_operator`], timed as
+    /// assembly), then PCG. Ok(‖R₀‖) when it solved the system; else what
+    /// the attempt spent, and `bufs.u` holds the iterate to go on from with
+    /// the assembled matrix.
+    fn step_by_products(
+        &mut self,
+        mesh: &mut HighOrderMesh,
+        bufs: &mut Buffers,
+        timings: &mut Timings,
+        out: &mut IncrementsReport,
+    ) -> std::result::Result<std::result::Result<f64, Spent>, Failure> {
+        let not_tried = Ok(Err(Spent::default()));
+        let Some(kernel) = self.kernel.cell_kernel() else { return not_tried };
+        if self.residual || self.collective.is_some() || !self.solver.solves_by_products() {
+            return not_tried;
+        }
+        let t = Instant::now();
+        let op = self.system.cell_operator(mesh, &mesh.coords, kernel);
+        let op = op.map_err(rejection)?;
+        let system = &self.system;
+        let n = system.dofs().n_system;
+        let mut rhs = vec![0.0; n];
+        system.apply_cells(&op, mesh, kernel, None, Some(&bufs.step), &mut rhs);
+        rhs.iter_mut().for_each(|v| *v = -*v);
+        timings.assembly += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let r0 = rhs.iter().map(|v| v * v).sum::<f64>().sqrt().max(f64::MIN_POSITIVE);
+        let mut apply = |v: &[f64], y: &mut [f64]| system.apply_cells(&op, mesh, kernel, Some(v), None, y);
+        let outcome = self.solver.solve_by_products(&mut apply, &rhs, &mut bufs.u[..n]).map_err(Failure::Fatal)?;
+        timings.solve += t.elapsed().as_secs_f64();
+        match outcome {
+            ProductSolve::Solved(stats) => {
+                out.solves.record(&stats);
+                out.solves.by_products += 1;
+                system.recover_interior(mesh, &bufs.step, &mut bufs.u);
+                system.dofs().add_to(&mut mesh.coords, &bufs.u, Some(&bufs.step));
+                Ok(Ok(r0))
+            }
+            ProductSolve::NeedsMatrix { iterations, breakdown } => {
+                out.solves.assembled_after_products += 1;
+                Ok(Err(Spent { iterations, breakdown }))
+            }
+        }
     }
 
     /// A failed assembly as a rejection of the increment, the same on every
@@ -705,10 +773,7 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
     /// first, else the invalid cell with the smallest index.
     fn agree_on_assembly(&self, assembled: Result<()>) -> std::result::Result<(), Failure> {
         let Some(collective) = self.collective.as_deref() else {
-            return assembled.map_err(|e| match e {
-                Error::InvalidElement { cell, message } => Failure::AtStart { cell, detail: message },
-                e => Failure::Fatal(e),
-            });
+            return assembled.map_err(rejection);
         };
         // Keys: 0 for another error, 1 + the cell's index for an invalid cell.
         let (fatal, invalid) = match assembled {
@@ -735,6 +800,7 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
         mesh: &HighOrderMesh,
         prescribed: &[f64],
         x: &mut [f64],
+        spent: Spent,
         timings: &mut Timings,
         out: &mut IncrementsReport,
     ) -> std::result::Result<(), Failure> {
@@ -742,8 +808,10 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
         let setup = self.solver.setup_seconds();
         let system = &self.system;
         let n = system.dofs().n_system;
-        let stats =
+        let mut stats =
             self.solver.solve(system.pattern(), system.values(), system.rhs(), &mut x[..n]).map_err(Failure::Fatal)?;
+        stats.iterations += spent.iterations;
+        stats.fallback = spent.breakdown.or(stats.fallback);
         out.solves.record(&stats);
         system.recover_interior(mesh, prescribed, x);
         // The preconditioner's set-up is timed as set-up, the rest as solving.
@@ -790,7 +858,7 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
                 break;
             }
             bufs.du.fill(0.0);
-            self.solve(mesh, &zero, &mut bufs.du, timings, out)?;
+            self.solve(mesh, &zero, &mut bufs.du, Spent::default(), timings, out)?;
             self.system.dofs().add_to(&mut mesh.coords, &bufs.du, None);
         }
         let last = *hist.last().expect("history starts with 1");

@@ -72,7 +72,7 @@ use super::lines::LineFactors;
 use super::pcg::{axpby_in_place, pcg, BlockJacobi, PcgFailure, PcgParams, SymmetricOperator, WithValues};
 use super::pmg::{Chebyshev, ChebyshevParams, Hierarchy, VCycle};
 use super::SparseRows;
-use super::{DirectSolver, FallbackReason, LinearSolver, NodeGroups, SolveStats, SolvedBy, SymmetricCsc};
+use super::{DirectSolver, FallbackReason, LinearSolver, NodeGroups, ProductSolve, SolveStats, SolvedBy, SymmetricCsc};
 use crate::{Error, Result, SolverFailure};
 
 /// Largest system the iterative solver hands to the direct one when PCG breaks
@@ -549,6 +549,80 @@ impl LinearSolver for IterativeSolver {
     /// one solved the system and why the first attempt failed.
     fn setup_seconds(&self) -> f64 {
         self.setup_seconds
+    }
+
+    /// With the kept smoother and coarse levels of an earlier matrix (the
+    /// fast mode), and its single-precision copy for the V-cycle.
+    fn solves_by_products(&self) -> bool {
+        !self.params.safe_preconditioner
+            && self.params.reuse_coarse
+            && self.kept.is_some()
+            && self.fine32.is_some()
+            && self.fresh_rate.is_some()
+            && self.coarse.as_ref().is_none_or(Hierarchy::is_ready)
+    }
+
+    /// PCG with the kept preconditioner, within the iteration budget of a
+    /// kept smoother ([`REUSE_SLACK`]), as [`Self::solve`] runs it with the
+    /// matrix. Past the budget, or on a breakdown, the smoother is set aside
+    /// and the caller assembles: the assembled solve builds a fresh one.
+    fn solve_by_products(
+        &mut self,
+        apply: &mut dyn FnMut(&[f64], &mut [f64]),
+        rhs: &[f64],
+        x: &mut [f64],
+    ) -> Result<ProductSolve> {
+        let solved =
+            |iterations| ProductSolve::Solved(SolveStats { iterations, solved_by: SolvedBy::Pcg, fallback: None });
+        if !self.solves_by_products() {
+            return Ok(ProductSolve::NeedsMatrix { iterations: 0, breakdown: None });
+        }
+        let b = rhs.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if b == 0.0 {
+            x.fill(0.0);
+            return Ok(solved(0));
+        }
+        let mut r = vec![0.0; rhs.len()];
+        apply(x, &mut r);
+        axpby_in_place(1.0, rhs, -1.0, &mut r);
+        let digits = (r.iter().map(|v| v * v).sum::<f64>().sqrt() / (self.params.pcg.rtol * b)).log10();
+        if digits <= 0.0 {
+            return Ok(solved(0));
+        }
+        let budget = self.reuse_budget(digits).expect("a smoother is kept");
+        let x0 = x.to_vec();
+        let smoother = self.kept.take().expect("a smoother is kept");
+        let fine: &dyn Operator = self.fine32.as_ref().expect("a single-precision copy");
+        let it = {
+            let mut pre = VCycle::new(fine, &smoother, self.coarse.as_mut());
+            pcg(
+                apply,
+                &mut |r, z| pre.apply_into(r, z),
+                rhs,
+                x,
+                Some(r),
+                self.params.pcg,
+                self.params.stagnation_window,
+                &mut |it| it != budget,
+            )
+        };
+        match it {
+            Ok(it) => {
+                self.last_iterations = Some(it);
+                self.set_aside(smoother, true);
+                Ok(solved(it))
+            }
+            Err(PcgFailure::Stopped { iteration }) => {
+                self.set_aside(smoother, false);
+                Ok(ProductSolve::NeedsMatrix { iterations: iteration, breakdown: None })
+            }
+            Err(f) => {
+                self.set_aside(smoother, false);
+                x.copy_from_slice(&x0);
+                let b = Breakdown::from_pcg(f);
+                Ok(ProductSolve::NeedsMatrix { iterations: b.iterations, breakdown: Some(b.reason) })
+            }
+        }
     }
 
     fn solve(&mut self, pattern: &SymmetricCsc, values: &[f64], rhs: &[f64], x: &mut [f64]) -> Result<SolveStats> {

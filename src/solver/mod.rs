@@ -59,6 +59,12 @@ pub struct SolveLog {
     pub solved_by: Vec<SolvedBy>,
     /// Per solve, why the first choice of solver did not produce it.
     pub fallback: Vec<Option<FallbackReason>>,
+    /// Solves made from the cells' products alone, without assembling the
+    /// matrix ([`LinearSolver::solve_by_products`]).
+    pub by_products: usize,
+    /// Solves begun that way that then needed the matrix (the kept
+    /// preconditioner too slow for it, or a breakdown, in `fallback`).
+    pub assembled_after_products: usize,
 }
 
 impl SolveLog {
@@ -74,6 +80,8 @@ impl SolveLog {
         self.iterations.extend(more.iterations);
         self.solved_by.extend(more.solved_by);
         self.fallback.extend(more.fallback);
+        self.by_products += more.by_products;
+        self.assembled_after_products += more.assembled_after_products;
     }
 
     /// Number of solves.
@@ -177,6 +185,35 @@ pub trait LinearSolver {
     fn setup_seconds(&self) -> f64 {
         0.0
     }
+    /// Whether [`Self::solve_by_products`] may solve the next system
+    /// without its matrix (with a preconditioner kept from an earlier one).
+    fn solves_by_products(&self) -> bool {
+        false
+    }
+    /// Solve A x = b knowing A only by its products (`apply(v, y)`: y = A v),
+    /// from the guess in `x`. When it cannot finish that way, `x` holds the
+    /// best iterate and the caller assembles A and calls [`Self::solve`].
+    fn solve_by_products(
+        &mut self,
+        _apply: &mut dyn FnMut(&[f64], &mut [f64]),
+        _rhs: &[f64],
+        _x: &mut [f64],
+    ) -> Result<ProductSolve> {
+        Ok(ProductSolve::NeedsMatrix { iterations: 0, breakdown: None })
+    }
+}
+
+/// The outcome of [`LinearSolver::solve_by_products`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ProductSolve {
+    Solved(SolveStats),
+    /// The matrix is needed: the kept preconditioner was too slow for this
+    /// system within its iteration budget (`breakdown` None), or PCG broke
+    /// down with it. `iterations` were spent.
+    NeedsMatrix {
+        iterations: usize,
+        breakdown: Option<FallbackReason>,
+    },
 }
 
 /// Which linear solver runs the increments.

@@ -1,0 +1,423 @@
+//! The condensed operator of isotropic linear elasticity applied cell by
+//! cell, without its matrix.
+//!
+//! A later increment of the ILE stage, whose preconditioner is kept from an
+//! earlier matrix, needs its own matrix only in a few products (the start's
+//! residual, one or two PCG iterations). Those products are made here from
+//! each cell's geometry at its points; the interior nodes are condensed with
+//! K_IB and W = K_II⁻¹ K_IB per cell, found by one application of the cell's
+//! operator per interior dof. W also recovers the interior values.
+
+use super::kernel::{factors_per_point, ApplyWorkspace, LinearElasticKernel};
+use super::System;
+#[cfg(test)]
+use super::InteriorRecovery;
+use crate::error::{Error, Result};
+use crate::mesh::HighOrderMesh;
+use rayon::prelude::*;
+use std::ops::Range;
+
+/// What the products need of one geometry: per cell, J⁻¹ and w det J at
+/// the points, and K_IB (the interior rows of the cell's matrix at its other
+/// dofs).
+pub struct CellOperator {
+    factors: Vec<f64>,
+    kib: Vec<f64>,
+    per_cell: usize,
+    /// Per cell, for each of its non-interior dofs (the split's `boundary`
+    /// order): its system row, or the number of system rows plus its dof
+    /// when it is prescribed.
+    slots: Vec<usize>,
+    /// The cells in [`PARTS`] runs, each with the range of system rows it reaches.
+    parts: Vec<(Range<usize>, Range<usize>)>,
+}
+
+/// Runs of cells whose products are summed apart, then added in order:
+/// the same sums whatever the threads.
+const PARTS: usize = 16;
+
+/// One thread's scratch for a cell's product.
+struct CellScratch {
+    /// The cell's values and products at its non-interior dofs.
+    vb: Vec<f64>,
+    yb: Vec<f64>,
+    ue: Vec<f64>,
+    ye: Vec<f64>,
+    z: Vec<f64>,
+    apply: ApplyWorkspace,
+}
+
+impl System {
+    /// The cell operator of the geometry `coords` (and W into the interior
+    /// recovery, as an assembly leaves it), or the error an assembly would
+    /// give: a cell with det J ≤ 0 at a point, or a singular interior block.
+    pub fn cell_operator(
+        &mut self,
+        mesh: &HighOrderMesh,
+        coords: &[f64],
+        kernel: &LinearElasticKernel,
+    ) -> Result<CellOperator> {
+        match mesh.dim() {
+            2 => self.cell_operator_in::<2>(mesh, coords, kernel),
+            _ => self.cell_operator_in::<3>(mesh, coords, kernel),
+        }
+    }
+
+    fn cell_operator_in<const D: usize>(
+        &mut self,
+        mesh: &HighOrderMesh,
+        coords: &[f64],
+        kernel: &LinearElasticKernel,
+    ) -> Result<CellOperator> {
+        let nd = mesh.nodes_per_cell() * D;
+        let per_cell = factors_per_point(D) * kernel.cache.n_points();
+        let mut interior = self.take_interior();
+        let (ii, bb) = self.local_dofs(nd);
+        let (ni, nb) = (ii.len(), bb.len());
+        // Without interior dofs, one unused value a cell keeps the three
+        // slices in step.
+        let (stride, kib_stride) = ((ni * (nb + 1)).max(1), (ni * nb).max(1));
+        let mut factors = vec![0.0; per_cell * mesh.n_cells()];
+        let mut kib = vec![0.0; kib_stride * mesh.n_cells()];
+        let mut none = Vec::new();
+        let keep = interior.as_mut().map_or(&mut none, |r| &mut r.keep);
+        keep.clear();
+        keep.resize(stride * mesh.n_cells(), 0.0);
+        factors
+            .par_chunks_mut(per_cell)
+            .zip(kib.par_chunks_mut(kib_stride))
+            .zip(keep.par_chunks_mut(stride))
+            .enumerate()
+            .try_for_each_init(
+                || (vec![0.0; nd], vec![0.0; nd], vec![0.0; nd], Vec::new(), ApplyWorkspace::default()),
+                |(xe, e, y, jac, ws), (c, ((f, kib), keep))| -> Result<()> {
+                    for (a, &n) in mesh.cell(c).iter().enumerate() {
+                        xe[a * D..(a + 1) * D].copy_from_slice(&coords[n * D..(n + 1) * D]);
+                    }
+                    kernel.point_factors::<D>(xe, f, jac).map_err(|det_j| {
+                        Error::invalid_element(Some(c), format!("cell {c} has a non-positive Jacobian ({det_j:.3e})"))
+                    })?;
+                    if ni == 0 {
+                        return Ok(());
+                    }
+                    let (w, _g) = keep.split_at_mut(ni * nb);
+                    interior_columns::<D>(kernel, f, (&ii, &bb), kib, w, (e, y, ws)).map_err(|_| {
+                        Error::invalid_element(Some(c), format!("cell {c}: the stiffness of its interior nodes is singular"))
+                    })
+                },
+            )?;
+        self.interior = interior;
+        let (parts, slots) = self.layout::<D>(mesh, &bb);
+        Ok(CellOperator { factors, kib, per_cell, slots, parts })
+    }
+
+    /// A cell's interior dofs and the others (all of its `nd` without condensation).
+    fn local_dofs(&self, nd: usize) -> (Vec<usize>, Vec<usize>) {
+        match self.dofs.split.as_ref() {
+            Some(s) => (s.interior.clone(), s.boundary.clone()),
+            None => (Vec::new(), (0..nd).collect()),
+        }
+    }
+
+    /// The cells' [`PARTS`] runs with the system rows each reaches, and
+    /// the cells' slots ([`CellOperator::slots`]) for their dofs `bb`.
+    #[allow(clippy::type_complexity)]
+    fn layout<const D: usize>(&self, mesh: &HighOrderMesh, bb: &[usize]) -> (Vec<(Range<usize>, Range<usize>)>, Vec<usize>) {
+        let dofs_of = |c: usize| mesh.cell(c).iter().flat_map(|&n| n * D..(n + 1) * D);
+        let per = mesh.n_cells().div_ceil(PARTS).max(1);
+        let parts = (0..mesh.n_cells())
+            .step_by(per)
+            .map(|first| {
+                let cells = first..(first + per).min(mesh.n_cells());
+                let rows = cells.clone().flat_map(dofs_of).filter_map(|dof| self.dofs.system_row(dof));
+                let (lo, hi) = rows.fold((usize::MAX, 0), |(lo, hi), r| (lo.min(r), hi.max(r + 1)));
+                (cells, lo.min(hi)..hi)
+            })
+            .collect();
+        let n_system = self.dofs.n_system;
+        let slots = (0..mesh.n_cells())
+            .flat_map(|c| {
+                let cell = mesh.cell(c);
+                bb.iter().map(move |&l| {
+                    let dof = cell[l / D] * D + l % D;
+                    self.dofs.system_row(dof).unwrap_or(n_system + dof)
+                })
+            })
+            .collect();
+        (parts, slots)
+    }
+
+    /// y (one value per system dof) = S v, S the condensed operator of `op`, for v
+    /// equal to `x` on the system dofs (zero when None) and `prescribed` on
+    /// the prescribed ones (one value per dof; zero when None). With x = 0
+    /// and the increment's prescribed values, −y is the condensed right-hand
+    /// side. Cells whose values are all zero are skipped.
+    pub fn apply_cells(
+        &self,
+        op: &CellOperator,
+        mesh: &HighOrderMesh,
+        kernel: &LinearElasticKernel,
+        x: Option<&[f64]>,
+        prescribed: Option<&[f64]>,
+        y: &mut [f64],
+    ) {
+        match mesh.dim() {
+            2 => self.apply_cells_in::<2>(op, mesh, kernel, x, prescribed, y),
+            _ => self.apply_cells_in::<3>(op, mesh, kernel, x, prescribed, y),
+        }
+    }
+
+    fn apply_cells_in<const D: usize>(
+        &self,
+        op: &CellOperator,
+        mesh: &HighOrderMesh,
+        kernel: &LinearElasticKernel,
+        x: Option<&[f64]>,
+        prescribed: Option<&[f64]>,
+        y: &mut [f64],
+    ) {
+        let nd = mesh.nodes_per_cell() * D;
+        let (ii, bb) = self.local_dofs(nd);
+        let ni = ii.len();
+        let w = self.interior.as_ref().map_or(&[][..], |r| &r.keep[..]);
+        let product = Product { op, kernel, x, prescribed, bb: &bb, ni, w, n_system: self.dofs.n_system };
+        let init = || CellScratch {
+            vb: vec![0.0; bb.len()],
+            yb: vec![0.0; bb.len()],
+            ue: vec![0.0; nd],
+            ye: vec![0.0; nd],
+            z: vec![0.0; ni],
+            apply: ApplyWorkspace::default(),
+        };
+        let sums: Vec<Vec<f64>> = op
+            .parts
+            .par_iter()
+            .map_init(init, |s, (cells, rows)| {
+                let mut part = vec![0.0; rows.len()];
+                cells.clone().for_each(|c| product.cell::<D>(s, c, rows.start, &mut part));
+                part
+            })
+            .collect();
+        // Each row adds the parts that reach it, in order.
+        const ROWS: usize = 4096;
+        y.par_chunks_mut(ROWS).enumerate().for_each(|(k, yc)| {
+            let first = k * ROWS;
+            yc.fill(0.0);
+            for ((_, rows), part) in op.parts.iter().zip(&sums) {
+                let (lo, hi) = (rows.start.max(first), rows.end.min(first + yc.len()));
+                for r in lo..hi {
+                    yc[r - first] += part[r - rows.start];
+                }
+            }
+        });
+    }
+}
+
+/// What one product of [`System::apply_cells`] reads.
+struct Product<'a> {
+    op: &'a CellOperator,
+    kernel: &'a LinearElasticKernel,
+    x: Option<&'a [f64]>,
+    prescribed: Option<&'a [f64]>,
+    /// The cells' non-interior local dofs, and the number of interior ones.
+    bb: &'a [usize],
+    ni: usize,
+    /// The interior recovery's W and g per cell (with interior dofs).
+    w: &'a [f64],
+    n_system: usize,
+}
+
+impl Product<'_> {
+    /// Cell c's share of the product added to `part`, which holds the
+    /// system rows from `rows` on.
+    fn cell<const D: usize>(&self, s: &mut CellScratch, c: usize, rows: usize, part: &mut [f64]) {
+        let (ni, nb, n_system) = (self.ni, self.bb.len(), self.n_system);
+        let slots = &self.op.slots[c * nb..][..nb];
+        let mut any = false;
+        for (v, &k) in s.vb.iter_mut().zip(slots) {
+            *v = if k < n_system { self.x.map_or(0.0, |x| x[k]) } else { self.prescribed.map_or(0.0, |p| p[k - n_system]) };
+            any |= *v != 0.0;
+        }
+        if !any {
+            return;
+        }
+        for (&l, &v) in self.bb.iter().zip(&s.vb) {
+            s.ue[l] = v;
+        }
+        let per_cell = self.op.per_cell;
+        self.kernel.apply::<D>(&self.op.factors[c * per_cell..][..per_cell], &s.ue, &mut s.ye, &mut s.apply);
+        for (y, &l) in s.yb.iter_mut().zip(self.bb) {
+            *y = s.ye[l];
+        }
+        if ni > 0 {
+            // z = −W v_B; y_B += K_BI z.
+            let w = &self.w[c * ni * (nb + 1)..][..ni * nb];
+            for (z, wi) in s.z.iter_mut().zip(w.chunks_exact(nb)) {
+                *z = -wi.iter().zip(&s.vb).map(|(w, v)| w * v).sum::<f64>();
+            }
+            let kib = &self.op.kib[c * ni * nb..][..ni * nb];
+            for (z, ki) in s.z.iter().zip(kib.chunks_exact(nb)) {
+                for (y, k) in s.yb.iter_mut().zip(ki) {
+                    *y += k * z;
+                }
+            }
+        }
+        for (&k, &y) in slots.iter().zip(&s.yb) {
+            if k < n_system {
+                part[k - rows] += y;
+            }
+        }
+    }
+}
+
+/// K_IB of a cell (`kib`, row j for the interior dof ii[j], columns in
+/// the order of `bb`) from its operator applied to each interior dof (K
+/// is symmetric), and W = K_II⁻¹ K_IB into `w`.
+fn interior_columns<const D: usize>(
+    kernel: &LinearElasticKernel,
+    factors: &[f64],
+    (ii, bb): (&[usize], &[usize]),
+    kib: &mut [f64],
+    w: &mut [f64],
+    (e, y, ws): (&mut [f64], &mut [f64], &mut ApplyWorkspace),
+) -> std::result::Result<(), ()> {
+    let (ni, nb) = (ii.len(), bb.len());
+    let mut kii = vec![0.0; ni * ni];
+    for (j, &dj) in ii.iter().enumerate() {
+        e.fill(0.0);
+        e[dj] = 1.0;
+        kernel.apply::<D>(factors, e, y, ws);
+        for (i, &di) in ii.iter().enumerate() {
+            kii[i * ni + j] = y[di];
+        }
+        for (b, &db) in bb.iter().enumerate() {
+            kib[j * nb + b] = y[db];
+        }
+    }
+    w.copy_from_slice(&kib[..ni * nb]);
+    solve_in_place(&mut kii, ni, w, nb)
+}
+
+/// A = `a` (n × n, row-major) factored by Gaussian elimination with partial
+/// pivoting, and the `m` columns of `b` (n × m, row-major) overwritten by
+/// A⁻¹ b; fails on a pivot ≤ 1e-14 of the largest entry of A.
+fn solve_in_place(a: &mut [f64], n: usize, b: &mut [f64], m: usize) -> std::result::Result<(), ()> {
+    let scale = a.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+    for k in 0..n {
+        let p = (k..n).max_by(|&i, &j| a[i * n + k].abs().total_cmp(&a[j * n + k].abs())).expect("k < n");
+        let pivot = a[p * n + k];
+        if pivot.is_nan() || pivot.abs() <= 1e-14 * scale {
+            return Err(());
+        }
+        if p != k {
+            for j in 0..n {
+                a.swap(k * n + j, p * n + j);
+            }
+            for j in 0..m {
+                b.swap(k * m + j, p * m + j);
+            }
+        }
+        for i in k + 1..n {
+            let f = a[i * n + k] / pivot;
+            if f == 0.0 {
+                continue;
+            }
+            for j in k..n {
+                a[i * n + j] -= f * a[k * n + j];
+            }
+            for j in 0..m {
+                b[i * m + j] -= f * b[k * m + j];
+            }
+        }
+    }
+    for k in (0..n).rev() {
+        for j in 0..m {
+            let mut v = b[k * m + j];
+            for i in k + 1..n {
+                v -= a[k * n + i] * b[i * m + j];
+            }
+            b[k * m + j] = v / a[k * n + k];
+        }
+    }
+    Ok(())
+}
+
+/// The interior recovery's W and g of the last assembly, for the tests.
+#[cfg(test)]
+impl InteriorRecovery {
+    fn kept(&self) -> &[f64] {
+        &self.keep
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::assembly::DofMap;
+    use crate::cases;
+    use crate::material::LinearElastic;
+    use crate::mesh::{validate_and_orient, Topology};
+    use crate::reference::{NodeSet, NodeSpacing};
+
+    /// The products without the matrix match the assembled matrix's, and
+    /// the right-hand side and interior recovery match the assembly's, on a
+    /// curved mesh in 2D and 3D, with and without condensation.
+    #[test]
+    fn products_by_cells_match_the_assembled_system() {
+        let cases = [(cases::cylinder_channel_2d(8, 2, 1.0), 4), (cases::sphere_in_box_3d(2, 2), 4), (cases::sphere_in_box_3d(2, 2), 2)];
+        for (case, p) in cases {
+            let (lin, _) = validate_and_orient(&case.mesh).unwrap();
+            let topo = Topology::new(&lin).unwrap();
+            let nodes = NodeSet::new(topo.simplex, p, NodeSpacing::Optimal);
+            let mut mesh = HighOrderMesh::elevate(&lin, &topo, &nodes, NodeSpacing::Optimal).unwrap();
+            for (i, x) in mesh.coords.iter_mut().enumerate() {
+                *x += 2e-3 * ((i as f64) * 0.7).sin();
+            }
+            let kernel = LinearElasticKernel::for_nodes(&nodes, LinearElastic::try_from_young_poisson(7.0, 0.4).unwrap());
+            // Prescribed values on the boundary, a smooth field.
+            let prescribed: Vec<f64> = (0..mesh.coords.len()).map(|i| 1e-2 * ((i as f64) * 0.31).cos()).collect();
+            for condensed in [false, true] {
+                let dofs = if condensed { DofMap::condensed(&mesh) } else { DofMap::new(&mesh) };
+                let mut system = System::new(&mesh, dofs);
+                system.assemble(&mesh, &mesh.coords, &kernel, &prescribed, false).unwrap();
+                let (values, rhs, keep) =
+                    (system.values().to_vec(), system.rhs().to_vec(), system.interior.as_ref().map(|r| r.kept().to_vec()));
+                let op = system.cell_operator(&mesh, &mesh.coords, &kernel).unwrap();
+                let n = system.dofs().n_system;
+                let x: Vec<f64> = (0..n).map(|i| ((i as f64) * 0.37).cos()).collect();
+                let mut y = vec![0.0; n];
+                system.apply_cells(&op, &mesh, &kernel, Some(&x), None, &mut y);
+                let want = system.pattern().sym_matvec(&values, &x);
+                let close = |a: &[f64], b: &[f64], what: &str| {
+                    let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                    let err = a.iter().zip(b).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+                    assert!(err <= 1e-10 * scale, "p = {p}, condensed {condensed}: {what} off by {err:e} (scale {scale:e})");
+                };
+                close(&y, &want, "product");
+                system.apply_cells(&op, &mesh, &kernel, None, Some(&prescribed), &mut y);
+                let minus: Vec<f64> = y.iter().map(|v| -v).collect();
+                close(&minus, &rhs, "right-hand side");
+                if let (Some(keep), Some(r)) = (keep, system.interior.as_ref()) {
+                    close(r.kept(), &keep, "interior recovery");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_small_dense_solve_with_pivoting() {
+        // A row swap is needed at the first step.
+        let mut a = vec![0.0, 2.0, 1.0, 1.0, 1.0, 0.0, 3.0, 0.0, 1.0];
+        let x = [1.0, -2.0, 0.5, 3.0, 0.25, -1.0];
+        let b_of = |a: &[f64]| -> Vec<f64> {
+            (0..3).flat_map(|i| (0..2).map(move |j| (0..3).map(|k| a[i * 3 + k] * x[k * 2 + j]).sum::<f64>()).collect::<Vec<_>>()).collect()
+        };
+        let mut b = b_of(&a);
+        solve_in_place(&mut a, 3, &mut b, 2).unwrap();
+        for (u, v) in b.iter().zip(&x) {
+            assert!((u - v).abs() < 1e-14, "{b:?}");
+        }
+        let mut singular = vec![1.0, 2.0, 2.0, 4.0];
+        assert!(solve_in_place(&mut singular, 2, &mut [1.0, 1.0], 1).is_err());
+    }
+}
