@@ -5,8 +5,9 @@
 //! earlier matrix, needs its own matrix only in a few products (the start's
 //! residual, one or two PCG iterations). Those products are made here from
 //! each cell's geometry at its points; the interior nodes are condensed with
-//! K_IB and W = K_II⁻¹ K_IB per cell, found by one application of the cell's
-//! operator per interior dof. W also recovers the interior values.
+//! K_II and W = K_II⁻¹ K_IB per cell (K_BI = Wᵀ K_II), found by one
+//! application of the cell's operator per interior dof. W also recovers the
+//! interior values.
 
 use super::kernel::{factors_per_point, ApplyWorkspace, LinearElasticKernel};
 use super::System;
@@ -18,11 +19,11 @@ use rayon::prelude::*;
 use std::ops::Range;
 
 /// What the products need of one geometry: per cell, J⁻¹ and w det J at
-/// the points, and K_IB (the interior rows of the cell's matrix at its other
-/// dofs).
+/// the points, and K_II (the cell matrix's block at its interior dofs; with
+/// W, K_BI = Wᵀ K_II).
 pub struct CellOperator {
     factors: Vec<f64>,
-    kib: Vec<f64>,
+    kii: Vec<f64>,
     per_cell: usize,
     /// Per cell, for each of its non-interior dofs (the split's `boundary`
     /// order): its system row, or the number of system rows plus its dof
@@ -76,21 +77,21 @@ impl System {
         let (ni, nb) = (ii.len(), bb.len());
         // Without interior dofs, one unused value a cell keeps the three
         // slices in step.
-        let (stride, kib_stride) = ((ni * (nb + 1)).max(1), (ni * nb).max(1));
+        let (stride, kii_stride) = ((ni * (nb + 1)).max(1), (ni * ni).max(1));
         let mut factors = vec![0.0; per_cell * mesh.n_cells()];
-        let mut kib = vec![0.0; kib_stride * mesh.n_cells()];
+        let mut kii = vec![0.0; kii_stride * mesh.n_cells()];
         let mut none = Vec::new();
         let keep = interior.as_mut().map_or(&mut none, |r| &mut r.keep);
         keep.clear();
         keep.resize(stride * mesh.n_cells(), 0.0);
         factors
             .par_chunks_mut(per_cell)
-            .zip(kib.par_chunks_mut(kib_stride))
+            .zip(kii.par_chunks_mut(kii_stride))
             .zip(keep.par_chunks_mut(stride))
             .enumerate()
             .try_for_each_init(
                 || (vec![0.0; nd], vec![0.0; nd], vec![0.0; nd], Vec::new(), ApplyWorkspace::default()),
-                |(xe, e, y, jac, ws), (c, ((f, kib), keep))| -> Result<()> {
+                |(xe, e, y, jac, ws), (c, ((f, kii), keep))| -> Result<()> {
                     for (a, &n) in mesh.cell(c).iter().enumerate() {
                         xe[a * D..(a + 1) * D].copy_from_slice(&coords[n * D..(n + 1) * D]);
                     }
@@ -101,14 +102,14 @@ impl System {
                         return Ok(());
                     }
                     let (w, _g) = keep.split_at_mut(ni * nb);
-                    interior_columns::<D>(kernel, f, (&ii, &bb), kib, w, (e, y, ws)).map_err(|_| {
+                    interior_columns::<D>(kernel, f, (&ii, &bb), kii, w, (e, y, ws)).map_err(|_| {
                         Error::invalid_element(Some(c), format!("cell {c}: the stiffness of its interior nodes is singular"))
                     })
                 },
             )?;
         self.interior = interior;
         let (parts, slots) = self.layout::<D>(mesh, &bb);
-        Ok(CellOperator { factors, kib, per_cell, slots, parts })
+        Ok(CellOperator { factors, kii, per_cell, slots, parts })
     }
 
     /// A cell's interior dofs and the others (all of its `nd` without condensation).
@@ -250,15 +251,16 @@ impl Product<'_> {
             *y = s.ye[l];
         }
         if ni > 0 {
-            // z = −W v_B; y_B += K_BI z.
+            // z = −W v_B; y_B += K_BI z = Wᵀ (K_II z).
             let w = &self.w[c * ni * (nb + 1)..][..ni * nb];
             for (z, wi) in s.z.iter_mut().zip(w.chunks_exact(nb)) {
                 *z = -wi.iter().zip(&s.vb).map(|(w, v)| w * v).sum::<f64>();
             }
-            let kib = &self.op.kib[c * ni * nb..][..ni * nb];
-            for (z, ki) in s.z.iter().zip(kib.chunks_exact(nb)) {
-                for (y, k) in s.yb.iter_mut().zip(ki) {
-                    *y += k * z;
+            let kii = &self.op.kii[c * ni * ni..][..ni * ni];
+            for (ki, wi) in kii.chunks_exact(ni).zip(w.chunks_exact(nb)) {
+                let t = ki.iter().zip(&s.z).map(|(k, z)| k * z).sum::<f64>();
+                for (y, w) in s.yb.iter_mut().zip(wi) {
+                    *y += w * t;
                 }
             }
         }
@@ -270,19 +272,18 @@ impl Product<'_> {
     }
 }
 
-/// K_IB of a cell (`kib`, row j for the interior dof ii[j], columns in
-/// the order of `bb`) from its operator applied to each interior dof (K
-/// is symmetric), and W = K_II⁻¹ K_IB into `w`.
+/// K_II of a cell (`kii`, the interior dofs ii in order) and W = K_II⁻¹ K_IB
+/// (`w`, columns in the order of `bb`), from its operator applied to each
+/// interior dof (K is symmetric).
 fn interior_columns<const D: usize>(
     kernel: &LinearElasticKernel,
     factors: &[f64],
     (ii, bb): (&[usize], &[usize]),
-    kib: &mut [f64],
+    kii: &mut [f64],
     w: &mut [f64],
     (e, y, ws): (&mut [f64], &mut [f64], &mut ApplyWorkspace),
 ) -> std::result::Result<(), ()> {
     let (ni, nb) = (ii.len(), bb.len());
-    let mut kii = vec![0.0; ni * ni];
     for (j, &dj) in ii.iter().enumerate() {
         e.fill(0.0);
         e[dj] = 1.0;
@@ -291,11 +292,10 @@ fn interior_columns<const D: usize>(
             kii[i * ni + j] = y[di];
         }
         for (b, &db) in bb.iter().enumerate() {
-            kib[j * nb + b] = y[db];
+            w[j * nb + b] = y[db];
         }
     }
-    w.copy_from_slice(&kib[..ni * nb]);
-    solve_in_place(&mut kii, ni, w, nb)
+    solve_in_place(&mut kii.to_vec(), ni, w, nb)
 }
 
 /// A = `a` (n × n, row-major) factored by Gaussian elimination with partial

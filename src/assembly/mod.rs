@@ -640,6 +640,12 @@ impl System {
         }
     }
 
+    /// Free the assembled values (a solve from the cells' products does not
+    /// read them); the next assembly allocates them again.
+    pub fn release_values(&mut self) {
+        self.values = Vec::new();
+    }
+
     pub fn dofs(&self) -> &DofMap {
         &self.dofs
     }

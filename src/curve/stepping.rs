@@ -742,6 +742,7 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
         let t = Instant::now();
         let op = self.system.cell_operator(mesh, &mesh.coords, kernel);
         let op = op.map_err(rejection)?;
+        self.system.release_values();
         let system = &self.system;
         let n = system.dofs().n_system;
         let mut rhs = vec![0.0; n];

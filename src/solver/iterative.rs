@@ -754,6 +754,55 @@ mod tests {
         assert!(relative_residual(&a, &far, &b, &x) <= rtol);
     }
 
+    /// A solve from products alone takes the kept smoother, solves a close
+    /// matrix as the assembled solve does, and hands a far one back after
+    /// its budget with the smoother set aside; the assembled solve then
+    /// finishes from the iterate.
+    #[test]
+    fn a_solve_by_products_keeps_to_the_kept_smoother_and_its_budget() {
+        let (a, v) = grid_laplacian(16, 3);
+        let scaled = |amp: f64| -> Vec<f64> {
+            let s = |i: usize| 1.0 + amp * ((i / 3) as f64 * 0.37).sin();
+            (0..a.n)
+                .flat_map(|c| (a.col_ptr[c]..a.col_ptr[c + 1]).map(move |k| (c, k)))
+                .map(|(c, k)| v[k] * s(c) * s(a.row_idx[k] as usize))
+                .collect()
+        };
+        let b: Vec<f64> = (0..a.n).map(|i| (i as f64 * 0.3).cos()).collect();
+        let rtol = IterativeParams::default().pcg.rtol;
+        let mut solver = IterativeSolver::try_new(&a, 3, Vec::new(), IterativeParams::default()).unwrap();
+        assert!(!solver.solves_by_products(), "no smoother is kept before a first solve");
+        solver.solve(&a, &v, &b, &mut vec![0.0; a.n]).unwrap();
+        assert!(solver.solves_by_products());
+        let op = SymmetricOperator::try_new(&a, 3).unwrap();
+        let close = scaled(0.005);
+        let mut x = vec![0.0; a.n];
+        let mut apply = |u: &[f64], y: &mut [f64]| op.with(&a, &close).matvec_into(u, y);
+        let by_products = solver.solve_by_products(&mut apply, &b, &mut x).unwrap();
+        let mut y = vec![0.0; a.n];
+        let assembled = {
+            let mut again = IterativeSolver::try_new(&a, 3, Vec::new(), IterativeParams::default()).unwrap();
+            again.solve(&a, &v, &b, &mut y).unwrap();
+            y.fill(0.0);
+            again.solve(&a, &close, &b, &mut y).unwrap()
+        };
+        assert_eq!(by_products, ProductSolve::Solved(assembled));
+        assert_eq!(x, y, "the same iterates as with the matrix");
+        assert!(solver.solves_by_products(), "the smoother is kept for the next one");
+        // Far: past the budget the matrix is asked for, and the assembled
+        // solve goes on from the iterate with a smoother built for it.
+        let far = scaled(0.9);
+        let mut x = vec![0.0; a.n];
+        let mut apply = |u: &[f64], y: &mut [f64]| op.with(&a, &far).matvec_into(u, y);
+        let budget = solver.reuse_budget(-rtol.log10()).expect("a smoother is kept");
+        let outcome = solver.solve_by_products(&mut apply, &b, &mut x).unwrap();
+        assert_eq!(outcome, ProductSolve::NeedsMatrix { iterations: budget, breakdown: None });
+        assert!(!solver.solves_by_products());
+        assert!(relative_residual(&a, &far, &b, &x) > rtol);
+        solver.solve(&a, &far, &b, &mut x).unwrap();
+        assert!(relative_residual(&a, &far, &b, &x) <= rtol);
+    }
+
     #[test]
     fn the_preconditioner_set_up_is_timed_apart_and_only_when_one_is_built() {
         let (a, v) = grid_laplacian(24, 1);
