@@ -731,6 +731,8 @@ fn encode_report(w: &mut Wire, r: &CurveReport) {
     w.list(&s.iterations.iter().map(|&n| n as u64).collect::<Vec<_>>());
     w.list(&s.solved_by.iter().map(|b| code(&SOLVED_BY, b) as u64).collect::<Vec<_>>());
     w.list(&s.fallback.iter().map(|f| f.map_or(0, |f| 1 + code(&FALLBACKS, &f) as u64)).collect::<Vec<_>>());
+    w.int(s.by_products);
+    w.int(s.assembled_after_products);
     w.int(r.elastic_stop.is_some() as usize);
     if let Some(e) = &r.elastic_stop {
         w.int(code(&STEP_BACK_REASONS, &e.reason));
@@ -782,6 +784,8 @@ fn decode_report(r: &mut Reader, session: &Session) -> CurveReport {
         iterations: r.list().into_iter().map(|n| n as usize).collect(),
         solved_by: r.list().into_iter().map(|b| SOLVED_BY[(b as usize).min(4)]).collect(),
         fallback: r.list().into_iter().map(|f| (f as usize).checked_sub(1).map(|k| FALLBACKS[k.min(5)])).collect(),
+        by_products: r.int(),
+        assembled_after_products: r.int(),
     };
     let elastic_stop = (r.int() == 1).then(|| {
         let reason = STEP_BACK_REASONS[r.int().min(3)];
