@@ -778,15 +778,7 @@ fn decode_report(r: &mut Reader, session: &Session) -> CurveReport {
         surface_flips,
     };
     let quality = decode_quality(r);
-    let name = r.text();
-    let solves = SolveLog {
-        solver: SOLVER_NAMES.iter().find(|&&n| n == name).copied().unwrap_or("external"),
-        iterations: r.list().into_iter().map(|n| n as usize).collect(),
-        solved_by: r.list().into_iter().map(|b| SOLVED_BY[(b as usize).min(4)]).collect(),
-        fallback: r.list().into_iter().map(|f| (f as usize).checked_sub(1).map(|k| FALLBACKS[k.min(5)])).collect(),
-        by_products: r.int(),
-        assembled_after_products: r.int(),
-    };
+    let solves = decode_solves(r);
     let elastic_stop = (r.int() == 1).then(|| {
         let reason = STEP_BACK_REASONS[r.int().min(3)];
         let cell = r.int().checked_sub(1);
@@ -833,6 +825,19 @@ fn encode_quality(w: &mut Wire, q: &MeshQuality) {
         w.int(n);
     }
     w.list(&q.histogram.iter().map(|&n| n as u64).collect::<Vec<_>>());
+}
+
+/// The linear solves of a report, as `encode_report` writes them.
+fn decode_solves(r: &mut Reader) -> SolveLog {
+    let name = r.text();
+    SolveLog {
+        solver: SOLVER_NAMES.iter().find(|&&n| n == name).copied().unwrap_or("external"),
+        iterations: r.list().into_iter().map(|n| n as usize).collect(),
+        solved_by: r.list().into_iter().map(|b| SOLVED_BY[(b as usize).min(4)]).collect(),
+        fallback: r.list().into_iter().map(|f| (f as usize).checked_sub(1).map(|k| FALLBACKS[k.min(5)])).collect(),
+        by_products: r.int(),
+        assembled_after_products: r.int(),
+    }
 }
 
 fn decode_quality(r: &mut Reader) -> MeshQuality {
