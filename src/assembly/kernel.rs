@@ -207,7 +207,7 @@ impl LinearElasticKernel {
 
     /// y_e = K_e u_e without K_e, from the element's [`Self::point_factors`]:
     /// at each point, ∇u = (∂u/∂ξ) J⁻¹, σ = λ tr(∇u) I + μ (∇u + ∇uᵀ), and
-    /// y_a += w det J σ J⁻ᵀ ∂N_a/∂ξ. About a tenth of the products of K_e.
+    /// y_a += w det J σ J⁻ᵀ ∂N_a/∂ξ: about a sixth of the time of K_e at p = 4.
     pub fn apply<const D: usize>(&self, factors: &[f64], ue: &[f64], ye: &mut [f64], ws: &mut ApplyWorkspace) {
         crate::linalg::with_avx2(
             #[inline(always)]
@@ -226,7 +226,7 @@ impl LinearElasticKernel {
         let jinv: [[&[f64]; D]; D] =
             std::array::from_fn(|k| std::array::from_fn(|j| &factors[(k * D + j) * nq..][..nq]));
         let wdet = &factors[D * D * nq..][..nq];
-        let mut p: Vec<&mut [f64]> = ws.stress.chunks_exact_mut(nq).collect();
+        let p = &mut ws.stress;
         for q in 0..nq {
             // H = (∂u/∂ξ) J⁻¹.
             let mut h = [[0.0; D]; D];
@@ -255,7 +255,7 @@ impl LinearElasticKernel {
                     for j in 0..D {
                         v += sigma[i][j] * jinv[k][j][q];
                     }
-                    p[i * D + k][q] = v;
+                    p[(i * D + k) * nq + q] = v;
                 }
             }
         }

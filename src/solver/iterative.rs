@@ -716,17 +716,20 @@ mod tests {
         (r / n).sqrt()
     }
 
+    /// The values of S A S for A = (`a`, `v`) with S = diag(1 + amp sin(0.37 i))
+    /// for the dofs of node i (`block` a node), as a later increment's matrix.
+    fn scaled_by_nodes(a: &SymmetricCsc, v: &[f64], block: usize, amp: f64) -> Vec<f64> {
+        let s = |i: usize| 1.0 + amp * ((i / block) as f64 * 0.37).sin();
+        (0..a.n)
+            .flat_map(|c| (a.col_ptr[c]..a.col_ptr[c + 1]).map(move |k| (c, k)))
+            .map(|(c, k)| v[k] * s(c) * s(a.row_idx[k] as usize))
+            .collect()
+    }
+
     #[test]
     fn a_kept_smoother_serves_a_close_matrix_and_is_rebuilt_within_its_budget_for_a_far_one() {
         let (a, v) = grid_laplacian(24, 1);
-        // S A S with S = diag(1 + amp sin(0.37 i)), as a later increment's matrix.
-        let scaled = |amp: f64| -> Vec<f64> {
-            let s = |i: usize| 1.0 + amp * (i as f64 * 0.37).sin();
-            (0..a.n)
-                .flat_map(|c| (a.col_ptr[c]..a.col_ptr[c + 1]).map(move |k| (c, k)))
-                .map(|(c, k)| v[k] * s(c) * s(a.row_idx[k] as usize))
-                .collect()
-        };
+        let scaled = |amp: f64| scaled_by_nodes(&a, &v, 1, amp);
         let b: Vec<f64> = (0..a.n).map(|i| (i as f64 * 0.3).cos()).collect();
         let rtol = IterativeParams::default().pcg.rtol;
         let mut solver = IterativeSolver::try_new(&a, 1, Vec::new(), IterativeParams::default()).unwrap();
@@ -761,13 +764,7 @@ mod tests {
     #[test]
     fn a_solve_by_products_keeps_to_the_kept_smoother_and_its_budget() {
         let (a, v) = grid_laplacian(16, 3);
-        let scaled = |amp: f64| -> Vec<f64> {
-            let s = |i: usize| 1.0 + amp * ((i / 3) as f64 * 0.37).sin();
-            (0..a.n)
-                .flat_map(|c| (a.col_ptr[c]..a.col_ptr[c + 1]).map(move |k| (c, k)))
-                .map(|(c, k)| v[k] * s(c) * s(a.row_idx[k] as usize))
-                .collect()
-        };
+        let scaled = |amp: f64| scaled_by_nodes(&a, &v, 3, amp);
         let b: Vec<f64> = (0..a.n).map(|i| (i as f64 * 0.3).cos()).collect();
         let rtol = IterativeParams::default().pcg.rtol;
         let mut solver = IterativeSolver::try_new(&a, 3, Vec::new(), IterativeParams::default()).unwrap();
