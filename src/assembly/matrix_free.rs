@@ -17,14 +17,23 @@ use crate::error::{Error, Result};
 use crate::mesh::HighOrderMesh;
 use rayon::prelude::*;
 use std::ops::Range;
+use std::sync::Arc;
 
 /// What the products need of one geometry: per cell, J⁻¹ and w det J at
 /// the points, and K_II (the cell matrix's block at its interior dofs; with
-/// W, K_BI = Wᵀ K_II).
+/// W, K_BI = Wᵀ K_II); and where the cells' values go, which the geometry
+/// does not change.
 pub struct CellOperator {
     factors: Vec<f64>,
     kii: Vec<f64>,
     per_cell: usize,
+    layout: Arc<CellLayout>,
+}
+
+/// Where each cell's values go in the system: found once for a
+/// [`System`], kept for each later geometry.
+#[derive(Debug)]
+pub struct CellLayout {
     /// Per cell, for each of its non-interior dofs (the split's `boundary`
     /// order): its system row, or the number of system rows plus its dof
     /// when it is prescribed.
@@ -90,8 +99,8 @@ impl System {
             .zip(keep.par_chunks_mut(stride))
             .enumerate()
             .try_for_each_init(
-                || (vec![0.0; nd], vec![0.0; nd], vec![0.0; nd], Vec::new(), ApplyWorkspace::default()),
-                |(xe, e, y, jac, ws), (c, ((f, kii), keep))| -> Result<()> {
+                || (vec![0.0; nd], vec![0.0; ni * ni], vec![0.0; nd], Vec::new(), ApplyWorkspace::default()),
+                |(xe, lu, y, jac, ws), (c, ((f, kii), keep))| -> Result<()> {
                     for (a, &n) in mesh.cell(c).iter().enumerate() {
                         xe[a * D..(a + 1) * D].copy_from_slice(&coords[n * D..(n + 1) * D]);
                     }
@@ -102,14 +111,17 @@ impl System {
                         return Ok(());
                     }
                     let (w, _g) = keep.split_at_mut(ni * nb);
-                    interior_columns::<D>(kernel, f, (&ii, &bb), kii, w, (e, y, ws)).map_err(|_| {
+                    interior_columns::<D>(kernel, f, (&ii, &bb), kii, w, (lu, y, ws)).map_err(|_| {
                         Error::invalid_element(Some(c), format!("cell {c}: the stiffness of its interior nodes is singular"))
                     })
                 },
             )?;
         self.interior = interior;
-        let (parts, slots) = self.layout::<D>(mesh, &bb);
-        Ok(CellOperator { factors, kii, per_cell, slots, parts })
+        let layout = match &self.cell_layout {
+            Some(layout) => layout.clone(),
+            None => self.cell_layout.insert(Arc::new(self.layout::<D>(mesh, &bb))).clone(),
+        };
+        Ok(CellOperator { factors, kii, per_cell, layout })
     }
 
     /// A cell's interior dofs and the others (all of its `nd` without condensation).
@@ -121,9 +133,8 @@ impl System {
     }
 
     /// The cells' [`PARTS`] runs with the system rows each reaches, and
-    /// the cells' slots ([`CellOperator::slots`]) for their dofs `bb`.
-    #[allow(clippy::type_complexity)]
-    fn layout<const D: usize>(&self, mesh: &HighOrderMesh, bb: &[usize]) -> (Vec<(Range<usize>, Range<usize>)>, Vec<usize>) {
+    /// the cells' slots for their dofs `bb`.
+    fn layout<const D: usize>(&self, mesh: &HighOrderMesh, bb: &[usize]) -> CellLayout {
         let dofs_of = |c: usize| mesh.cell(c).iter().flat_map(|&n| n * D..(n + 1) * D);
         let per = mesh.n_cells().div_ceil(PARTS).max(1);
         let parts = (0..mesh.n_cells())
@@ -137,7 +148,8 @@ impl System {
             .collect();
         let n_system = self.dofs.n_system;
         let slots = (0..mesh.n_cells())
-            .flat_map(|c| {
+            .into_par_iter()
+            .flat_map_iter(|c| {
                 let cell = mesh.cell(c);
                 bb.iter().map(move |&l| {
                     let dof = cell[l / D] * D + l % D;
@@ -145,7 +157,7 @@ impl System {
                 })
             })
             .collect();
-        (parts, slots)
+        CellLayout { parts, slots }
     }
 
     /// y (one value per system dof) = S v, S the condensed operator of `op`, for v
@@ -191,6 +203,7 @@ impl System {
             apply: ApplyWorkspace::default(),
         };
         let sums: Vec<Vec<f64>> = op
+            .layout
             .parts
             .par_iter()
             .map_init(init, |s, (cells, rows)| {
@@ -204,7 +217,7 @@ impl System {
         y.par_chunks_mut(ROWS).enumerate().for_each(|(k, yc)| {
             let first = k * ROWS;
             yc.fill(0.0);
-            for ((_, rows), part) in op.parts.iter().zip(&sums) {
+            for ((_, rows), part) in op.layout.parts.iter().zip(&sums) {
                 let (lo, hi) = (rows.start.max(first), rows.end.min(first + yc.len()));
                 for r in lo..hi {
                     yc[r - first] += part[r - rows.start];
@@ -233,7 +246,7 @@ impl Product<'_> {
     /// system rows from `rows` on.
     fn cell<const D: usize>(&self, s: &mut CellScratch, c: usize, rows: usize, part: &mut [f64]) {
         let (ni, nb, n_system) = (self.ni, self.bb.len(), self.n_system);
-        let slots = &self.op.slots[c * nb..][..nb];
+        let slots = &self.op.layout.slots[c * nb..][..nb];
         let mut any = false;
         for (v, &k) in s.vb.iter_mut().zip(slots) {
             *v = if k < n_system { self.x.map_or(0.0, |x| x[k]) } else { self.prescribed.map_or(0.0, |p| p[k - n_system]) };
@@ -273,21 +286,19 @@ impl Product<'_> {
 }
 
 /// K_II of a cell (`kii`, the interior dofs ii in order) and W = K_II⁻¹ K_IB
-/// (`w`, columns in the order of `bb`), from its operator applied to each
-/// interior dof (K is symmetric).
+/// (`w`, columns in the order of `bb`), from the cell matrix's columns at
+/// the interior dofs (K is symmetric); `lu` holds the factors of K_II.
 fn interior_columns<const D: usize>(
     kernel: &LinearElasticKernel,
     factors: &[f64],
     (ii, bb): (&[usize], &[usize]),
     kii: &mut [f64],
     w: &mut [f64],
-    (e, y, ws): (&mut [f64], &mut [f64], &mut ApplyWorkspace),
+    (lu, y, ws): (&mut [f64], &mut [f64], &mut ApplyWorkspace),
 ) -> std::result::Result<(), ()> {
     let (ni, nb) = (ii.len(), bb.len());
     for (j, &dj) in ii.iter().enumerate() {
-        e.fill(0.0);
-        e[dj] = 1.0;
-        kernel.apply::<D>(factors, e, y, ws);
+        kernel.apply_unit::<D>(factors, dj, y, ws);
         for (i, &di) in ii.iter().enumerate() {
             kii[i * ni + j] = y[di];
         }
@@ -295,7 +306,8 @@ fn interior_columns<const D: usize>(
             w[j * nb + b] = y[db];
         }
     }
-    solve_in_place(&mut kii.to_vec(), ni, w, nb)
+    lu.copy_from_slice(kii);
+    solve_in_place(lu, ni, w, nb)
 }
 
 /// A = `a` (n × n, row-major) factored by Gaussian elimination with partial
@@ -361,7 +373,8 @@ mod tests {
 
     /// The products without the matrix match the assembled matrix's, and
     /// the right-hand side and interior recovery match the assembly's, on a
-    /// curved mesh in 2D and 3D, with and without condensation.
+    /// curved mesh in 2D and 3D, with and without condensation; and again
+    /// on a second geometry, with the layout kept from the first.
     #[test]
     fn products_by_cells_match_the_assembled_system() {
         let cases = [(cases::cylinder_channel_2d(8, 2, 1.0), 4), (cases::sphere_in_box_3d(2, 2), 4), (cases::sphere_in_box_3d(2, 2), 2)];
@@ -376,9 +389,16 @@ mod tests {
             let kernel = LinearElasticKernel::for_nodes(&nodes, LinearElastic::try_from_young_poisson(7.0, 0.4).unwrap());
             // Prescribed values on the boundary, a smooth field.
             let prescribed: Vec<f64> = (0..mesh.coords.len()).map(|i| 1e-2 * ((i as f64) * 0.31).cos()).collect();
-            for condensed in [false, true] {
-                let dofs = if condensed { DofMap::condensed(&mesh) } else { DofMap::new(&mesh) };
-                let mut system = System::new(&mesh, dofs);
+            let mut system = None;
+            for (condensed, geometry) in [false, true].into_iter().flat_map(|c| [(c, 0), (c, 1)]) {
+                if geometry == 0 {
+                    let dofs = if condensed { DofMap::condensed(&mesh) } else { DofMap::new(&mesh) };
+                    system = Some(System::new(&mesh, dofs));
+                }
+                for (i, x) in mesh.coords.iter_mut().enumerate() {
+                    *x += 1e-3 * geometry as f64 * ((i as f64) * 1.3).cos();
+                }
+                let system = system.as_mut().expect("made for the first geometry");
                 system.assemble(&mesh, &mesh.coords, &kernel, &prescribed, false).unwrap();
                 let (values, rhs, keep) =
                     (system.values().to_vec(), system.rhs().to_vec(), system.interior.as_ref().map(|r| r.kept().to_vec()));
@@ -391,7 +411,10 @@ mod tests {
                 let close = |a: &[f64], b: &[f64], what: &str| {
                     let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
                     let err = a.iter().zip(b).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-                    assert!(err <= 1e-10 * scale, "p = {p}, condensed {condensed}: {what} off by {err:e} (scale {scale:e})");
+                    assert!(
+                        err <= 1e-10 * scale,
+                        "p = {p}, condensed {condensed}, geometry {geometry}: {what} off by {err:e} (scale {scale:e})"
+                    );
                 };
                 close(&y, &want, "product");
                 system.apply_cells(&op, &mesh, &kernel, None, Some(&prescribed), &mut y);
