@@ -5,9 +5,9 @@
 //! earlier matrix, needs its own matrix only in a few products (the start's
 //! residual, one or two PCG iterations). Those products are made here from
 //! each cell's geometry at its points; the interior nodes are condensed with
-//! K_II and W = K_II⁻¹ K_IB per cell (K_BI = Wᵀ K_II), found by one
-//! application of the cell's operator per interior dof. W also recovers the
-//! interior values.
+//! K_II and W = K_II⁻¹ K_IB per cell (K_BI = Wᵀ K_II), found from the cell
+//! matrix's column at each interior dof. W also recovers the interior
+//! values.
 
 use super::kernel::{factors_per_point, ApplyWorkspace, LinearElasticKernel};
 use super::System;
