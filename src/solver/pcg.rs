@@ -500,6 +500,27 @@ impl std::fmt::Display for PcgFailure {
 }
 
 impl PcgFailure {
+    /// The same failure in a PCG that had run `spent` iterations before this one's start.
+    pub fn after(self, spent: usize) -> PcgFailure {
+        match self {
+            PcgFailure::PreconditionerNotPositive { iteration, rz } => {
+                PcgFailure::PreconditionerNotPositive { iteration: iteration + spent, rz }
+            }
+            PcgFailure::MatrixNotPositive { iteration, pap } => {
+                PcgFailure::MatrixNotPositive { iteration: iteration + spent, pap }
+            }
+            PcgFailure::NonFinite { iteration } => PcgFailure::NonFinite { iteration: iteration + spent },
+            PcgFailure::Stagnated { iteration, window, relative_residual } => {
+                PcgFailure::Stagnated { iteration: iteration + spent, window, relative_residual }
+            }
+            PcgFailure::NotConverged { iterations, relative_residual, rtol } => {
+                PcgFailure::NotConverged { iterations: iterations + spent, relative_residual, rtol }
+            }
+            PcgFailure::Stopped { iteration } => PcgFailure::Stopped { iteration: iteration + spent },
+            f @ PcgFailure::Preconditioner(_) => f,
+        }
+    }
+
     /// The kind of solver failure this is.
     fn kind(&self) -> SolverFailure {
         match self {
