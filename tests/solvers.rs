@@ -124,7 +124,7 @@ fn system(p: usize) -> (HighOrderMesh, DofMap, SymmetricCsc, Vec<f64>, Vec<f64>)
 #[test]
 fn galerkin_coarse_operator_is_the_symmetric_triple_product() {
     let (mesh, dofs, pattern, values, _) = system(2);
-    let (levels, _) = multigrid_levels(&mesh, &dofs, &[]);
+    let levels = multigrid_levels(&mesh, &dofs, &[], None).levels;
     let (pm, cp) = &levels[0];
     let op = SymmetricOperator::try_new(&pattern, 3).unwrap();
     let a = op.with(&pattern, &values);
@@ -178,7 +178,8 @@ fn pmultigrid_needs_far_fewer_iterations_than_jacobi_pcg() {
         let (mesh, dofs, pattern, values, rhs) = system(p);
         // Both to the same tolerance.
         let params = IterativeParams { pcg: PcgParams { rtol: 1e-8, max_iterations: 1000 }, ..Default::default() };
-        let mut pmg = IterativeSolver::try_new(&pattern, 3, multigrid_levels(&mesh, &dofs, &[]).0, params).unwrap();
+        let mut pmg =
+            IterativeSolver::try_new(&pattern, 3, multigrid_levels(&mesh, &dofs, &[], None).levels, params).unwrap();
         let mut x = vec![0.0; pattern.n];
         let it_pmg = pmg.solve(&pattern, &values, &rhs, &mut x).unwrap().iterations;
         let op = SymmetricOperator::try_new(&pattern, 3).unwrap();
@@ -228,7 +229,8 @@ fn pcg_restarts_with_a_safe_preconditioner_when_slivers_break_the_default_one() 
         let n = a.pattern().n;
         let params = IterativeParams { fallback_max_dofs: 0, ..Default::default() };
         let mut solver =
-            IterativeSolver::try_new(a.pattern(), 3, multigrid_levels(&a.mesh, a.dofs(), &[]).0, params).unwrap();
+            IterativeSolver::try_new(a.pattern(), 3, multigrid_levels(&a.mesh, a.dofs(), &[], None).levels, params)
+                .unwrap();
         let mut x = vec![0.0; n];
         let first = solver.solve(a.pattern(), a.system.values(), a.system.rhs(), &mut x).unwrap();
         assert_eq!((first.solved_by, first.fallback), (SolvedBy::Pcg, None));
@@ -276,7 +278,8 @@ fn layer_iterations(case: &Case, p: usize, lines: bool) -> (usize, Vec<f64>) {
     let s = common::straight_system(case, p, true, false);
     let dim = s.mesh.dim();
     let cells = if lines { cell_lines(&s.mesh) } else { Vec::new() };
-    let (levels, groups) = multigrid_levels(&s.mesh, s.dofs(), &cells);
+    let hierarchy = multigrid_levels(&s.mesh, s.dofs(), &cells, None);
+    let (levels, groups) = (hierarchy.levels, hierarchy.groups);
     let params = IterativeParams { pcg: PcgParams { rtol: 1e-8, max_iterations: 2000 }, ..Default::default() };
     let mut solver = IterativeSolver::try_new(s.pattern(), dim, levels, params).unwrap().with_lines(groups);
     let mut x = vec![0.0; s.pattern().n];

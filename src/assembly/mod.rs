@@ -643,6 +643,11 @@ impl System {
         }
     }
 
+    /// The dof map, the pattern and the assembled values.
+    pub fn into_matrix(self) -> (DofMap, SymmetricCsc, Vec<f64>) {
+        (self.dofs, self.pattern, self.values)
+    }
+
     /// Free the assembled values (a solve from the cells' products does not
     /// read them); the next assembly allocates them again.
     pub fn release_values(&mut self) {

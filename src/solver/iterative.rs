@@ -299,6 +299,15 @@ impl IterativeSolver {
     /// coarse level k (groups of nodes, nodal blocks of size `block`; the
     /// coarsest level, factored, needs none). The safe mode of a restart
     /// keeps nodal blocks.
+    /// The first coarse level's operator assembled on its own mesh, for the
+    /// first set-up of the coarse levels ([`Hierarchy::set_first_values`]).
+    pub fn with_first_coarse_values(mut self, values: Option<Vec<f64>>) -> IterativeSolver {
+        if let (Some(c), Some(values)) = (&mut self.coarse, values) {
+            c.set_first_values(values);
+        }
+        self
+    }
+
     pub fn with_lines(mut self, mut lines: Vec<NodeGroups>) -> IterativeSolver {
         if lines.is_empty() {
             return self;

@@ -486,6 +486,9 @@ pub struct Hierarchy {
     block: usize,
     params: ChebyshevParams,
     ready: bool,
+    /// The first coarse level's operator for the next fast set-up, instead
+    /// of the Galerkin product ([`Self::set_first_values`]).
+    given: Option<Vec<f64>>,
 }
 
 impl Hierarchy {
@@ -525,7 +528,7 @@ impl Hierarchy {
                 x: v(),
             });
         }
-        Ok(Hierarchy { levels: out, block, params, ready: false })
+        Ok(Hierarchy { levels: out, block, params, ready: false, given: None })
     }
 
     /// Smooth coarse level k (0 the finest coarse level) in the line
@@ -534,6 +537,15 @@ impl Hierarchy {
         for (l, g) in self.levels.iter_mut().zip(lines) {
             l.lines = Some(g).filter(|g| !g.is_empty());
         }
+        self.ready = false;
+    }
+
+    /// The first coarse level's operator (values of its pattern) for the
+    /// next set-up in the fast mode, instead of PᵀAP: one assembled on that
+    /// level's own mesh. The safe mode, and later set-ups, take the product.
+    /// Ignored unless it fits the level's pattern.
+    pub fn set_first_values(&mut self, values: Vec<f64>) {
+        self.given = self.levels.first().filter(|l| l.pattern.nnz() == values.len()).map(|_| values);
         self.ready = false;
     }
 
@@ -547,11 +559,15 @@ impl Hierarchy {
     /// `safe`, the smoothers of [`Chebyshev::try_new_safe`].
     pub fn try_update_with(&mut self, a: WithValues, safe: bool) -> Result<()> {
         self.ready = false;
+        let mut given = self.given.take().filter(|_| !safe);
         for k in 0..self.levels.len() {
             let (above, rest) = self.levels.split_at_mut(k);
             let l = &mut rest[0];
             l.values = match above.last() {
-                None => galerkin_product(a, &l.p, &l.pt, &l.pattern),
+                None => match given.take() {
+                    Some(values) => values,
+                    None => galerkin_product(a, &l.p, &l.pt, &l.pattern),
+                },
                 Some(up) => galerkin_product(up.op.with(&up.pattern, &up.values), &l.p, &l.pt, &l.pattern),
             };
             if let Some((chol, factor)) = &mut l.chol {
@@ -752,6 +768,29 @@ mod tests {
             q.val[q.row_ptr[b * 10 + 1]] += 0.25;
             assert!(nodal_prolongation(&q, b).is_none());
         }
+    }
+
+    /// Given first-level values serve the next fast set-up only; the safe
+    /// mode, later set-ups, and values that do not fit take PᵀAP.
+    #[test]
+    fn given_first_level_values_serve_one_fast_set_up() {
+        let (a, v, p, coarse) = block_problem(3);
+        let op = SymmetricOperator::try_new(&a, 3).unwrap();
+        let mat = op.with(&a, &v);
+        let galerkin = galerkin_product(mat, &p, &p.transpose(), &coarse);
+        let given: Vec<f64> = galerkin.iter().map(|x| 2.0 * x).collect();
+        let mut h = Hierarchy::try_new(vec![(p, coarse)], 3, ChebyshevParams::default()).unwrap();
+        h.set_first_values(given.clone());
+        h.try_update_with(mat, false).unwrap();
+        assert_eq!(h.levels[0].values, given);
+        h.try_update_with(mat, false).unwrap();
+        assert_eq!(h.levels[0].values, galerkin, "taken once");
+        h.set_first_values(given.clone());
+        h.try_update_with(mat, true).unwrap();
+        assert_eq!(h.levels[0].values, galerkin, "the safe mode's product");
+        h.set_first_values(given[1..].to_vec());
+        h.try_update_with(mat, false).unwrap();
+        assert_eq!(h.levels[0].values, galerkin, "values that do not fit the pattern");
     }
 
     #[test]
