@@ -13,6 +13,7 @@
 //! neighbouring cells agree. It is free if the entity it lies on carries free
 //! order-p nodes (interior entities), else fixed.
 
+use rayon::prelude::*;
 use rustc_hash::FxHashMap as HashMap;
 
 use super::lines::line_groups;
@@ -118,25 +119,40 @@ pub fn prolongation(
     let coarse_nodes = NodeSet::new(coarse.simplex, coarse.order, coarse.spacing);
     let tab = LagrangeBasis::new(&coarse_nodes).tabulate(&fine_nodes.coords);
     let nq = coarse_nodes.len();
-    let mut rows: Vec<Vec<(u32, f64)>> = vec![Vec::new(); fine_dofs.n_system];
-    let mut done = vec![false; fine.n_nodes()];
+    // Each fine node's first cell, and its place there.
+    let mut owner = vec![(usize::MAX, 0); fine.n_nodes()];
     for c in 0..fine.n_cells() {
-        let (cell, ccell) = (fine.cell(c), coarse.cell(c));
-        for (a, &n) in cell.iter().enumerate() {
-            let Some(r0) = fine_dofs.system_row(n * dim).filter(|_| !done[n]) else { continue };
-            done[n] = true;
-            for d in 0..dim {
-                let row = &mut rows[r0 + d];
-                for (b, &m) in ccell.iter().enumerate() {
-                    let w = tab.values[a * nq + b];
-                    if let Some(j) = coarse_dofs.system_row(m * dim + d).filter(|_| w.abs() > 1e-12) {
-                        row.push((j as u32, w));
-                    }
-                }
-                row.sort_unstable_by_key(|e| e.0);
+        for (a, &n) in fine.cell(c).iter().enumerate() {
+            if owner[n].0 == usize::MAX {
+                owner[n] = (c, a);
             }
         }
     }
+    // The fine system's nodes in the order of their rows (a node's `dim`
+    // rows are consecutive), their rows made in parallel.
+    let mut by_row = vec![0; fine_dofs.n_system / dim];
+    for n in 0..fine.n_nodes() {
+        if let Some(r0) = fine_dofs.system_row(n * dim) {
+            by_row[r0 / dim] = n;
+        }
+    }
+    let rows: Vec<Vec<(u32, f64)>> = by_row
+        .par_iter()
+        .flat_map_iter(|&n| {
+            let (c, a) = owner[n];
+            let (ccell, weights) = (coarse.cell(c), &tab.values[a * nq..(a + 1) * nq]);
+            (0..dim).map(move |d| {
+                let mut row: Vec<(u32, f64)> = ccell
+                    .iter()
+                    .zip(weights)
+                    .filter(|(_, w)| w.abs() > 1e-12)
+                    .filter_map(|(&m, &w)| coarse_dofs.system_row(m * dim + d).map(|j| (j as u32, w)))
+                    .collect();
+                row.sort_unstable_by_key(|e| e.0);
+                row
+            })
+        })
+        .collect();
     SparseRows::from_rows(coarse_dofs.n_system, &rows)
 }
 

@@ -233,7 +233,8 @@ pub fn nodal_blocks(pattern: &SymmetricCsc, b: usize) -> Result<Vec<Vec<u32>>> {
             rows.iter().step_by(b).map(|&r| r / b as u32).collect()
         })
         .collect();
-    for (j, nodes) in upper.iter().enumerate() {
+    let bad = upper.par_iter().enumerate().find_first(|(j, nodes)| {
+        let j = *j;
         let ok = nodes.first() == Some(&(j as u32))
             && nodes.windows(2).all(|w| w[0] < w[1])
             && (0..b).all(|jj| {
@@ -245,14 +246,15 @@ pub fn nodal_blocks(pattern: &SymmetricCsc, b: usize) -> Result<Vec<Vec<u32>>> {
                         r as usize == nodes[t / b] as usize * b + t % b
                     })
             });
-        if !ok {
-            return Err(Error::solver(
-                SolverFailure::Setup,
-                format!("block matrix: column {} is not in nodal-block layout", j * b),
-            ));
-        }
+        !ok
+    });
+    match bad {
+        Some((j, _)) => Err(Error::solver(
+            SolverFailure::Setup,
+            format!("block matrix: column {} is not in nodal-block layout", j * b),
+        )),
+        None => Ok(upper),
     }
-    Ok(upper)
 }
 
 impl BlockSym32 {
@@ -452,6 +454,24 @@ mod tests {
         }
         let values = (0..row_idx.len()).map(|k| ((k * 7919) % 1000) as f64 / 250.0 - 2.0).collect();
         (SymmetricCsc { n: nodes * b, col_ptr, row_idx: row_idx.into_iter().map(|r| r as u32).collect() }, values)
+    }
+
+    /// The layout is read from each node's first column and checked on all
+    /// of them: a column whose rows break it is named.
+    #[test]
+    fn nodal_blocks_reads_the_layout_and_names_a_column_that_breaks_it() {
+        let (pattern, _) = ring(23, 3);
+        let upper = nodal_blocks(&pattern, 3).unwrap();
+        assert_eq!(upper.len(), 23);
+        assert_eq!(upper[0], [0, 1, 2, 7]);
+        assert_eq!(upper[22], [22]);
+        // Node 5's second column (dof 16) loses its last row.
+        let mut broken = pattern.clone();
+        let end = broken.col_ptr[17] - 1;
+        broken.row_idx.remove(end);
+        broken.col_ptr[17..].iter_mut().for_each(|p| *p -= 1);
+        let err = nodal_blocks(&broken, 3).unwrap_err().to_string();
+        assert!(err.contains("column 15 is not in nodal-block layout"), "{err}");
     }
 
     #[test]
