@@ -183,19 +183,30 @@ impl DofMap {
         // Per free node: the first rows of its neighbours from its own on,
         // ascending (a node's rows are consecutive; sorted as plain integers,
         // not by a looked-up key: 35 ms against 54 ms on the sphere cavity at
-        // p = 4).
-        let columns: Vec<Vec<usize>> = (0..n_nodes)
-            .into_par_iter()
-            .map(|n| {
-                let Some(own) = self.system_row(n * dim) else { return Vec::new() };
-                let mut nb: Vec<usize> = node_cells[start[n]..start[n + 1]]
+        // p = 4). The nodes of one edge, face or cell interior lie in the
+        // same cells and are numbered one after another: their neighbours
+        // are gathered once per run of such nodes (25,527 runs of 63,491
+        // nodes on the torus cavity at p = 4: 20-22 ms against 37-58 ms).
+        let cells_of = |n: usize| &node_cells[start[n]..start[n + 1]];
+        let mut runs: Vec<usize> = (0..n_nodes).filter(|&n| n == 0 || cells_of(n) != cells_of(n - 1)).collect();
+        runs.push(n_nodes);
+        let columns: Vec<Vec<usize>> = runs
+            .par_windows(2)
+            .flat_map_iter(|run| {
+                let nodes = run[0]..run[1];
+                let rows = nodes.clone().filter_map(|n| self.system_row(n * dim));
+                let lowest = rows.min().unwrap_or(usize::MAX);
+                let mut nb: Vec<usize> = cells_of(run[0])
                     .iter()
                     .flat_map(|&c| mesh.cell(c).iter().filter_map(|&m| self.system_row(m * dim)))
-                    .filter(|&r| r >= own)
+                    .filter(|&r| r >= lowest)
                     .collect();
                 nb.sort_unstable();
                 nb.dedup();
-                nb
+                nodes.map(move |n| match self.system_row(n * dim) {
+                    Some(own) => nb[nb.partition_point(|&r| r < own)..].to_vec(),
+                    None => Vec::new(),
+                })
             })
             .collect();
         // Column (n, c) holds rows (n, c..dim), then (m, 0..dim) of each
