@@ -164,21 +164,7 @@ impl DofMap {
     pub fn pattern(&self, mesh: &HighOrderMesh) -> SymmetricCsc {
         assert!(self.n_system < u32::MAX as usize, "{} unknowns: more than 32-bit row indices hold", self.n_system);
         let n_nodes = mesh.n_nodes();
-        let npc = mesh.nodes_per_cell();
-        // node → cells (CSR)
-        let mut start = vec![0usize; n_nodes + 1];
-        for &n in &mesh.cells {
-            start[n + 1] += 1;
-        }
-        for i in 0..n_nodes {
-            start[i + 1] += start[i];
-        }
-        let mut fill = start.clone();
-        let mut node_cells = vec![0usize; mesh.cells.len()];
-        for (k, &n) in mesh.cells.iter().enumerate() {
-            node_cells[fill[n]] = k / npc;
-            fill[n] += 1;
-        }
+        let (start, node_cells) = node_cells(mesh);
         let dim = self.dim;
         // Per free node: the first rows of its neighbours from its own on,
         // ascending (a node's rows are consecutive; sorted as plain integers,
@@ -245,25 +231,36 @@ impl DofMap {
     }
 }
 
+/// The cells around each node, in compressed rows: those of node n are
+/// `cells[start[n]..start[n + 1]]`, ascending.
+fn node_cells(mesh: &HighOrderMesh) -> (Vec<usize>, Vec<usize>) {
+    cells_around(mesh, mesh.nodes_per_cell(), mesh.n_nodes())
+}
+
 /// The cells around each vertex, in compressed rows: those of vertex v are
 /// `cells[start[v]..start[v + 1]]`, ascending.
 fn vertex_cells(mesh: &HighOrderMesh) -> (Vec<usize>, Vec<usize>) {
-    let (nv, nc) = (mesh.dim() + 1, mesh.n_cells());
-    let mut start = vec![0usize; mesh.n_vertices + 1];
-    for c in 0..nc {
-        for &v in &mesh.cell(c)[..nv] {
-            start[v + 1] += 1;
+    cells_around(mesh, mesh.dim() + 1, mesh.n_vertices)
+}
+
+/// The cells around each of the first `count` nodes, from the first `first`
+/// nodes of each cell (the vertices come first in a cell, and in the mesh).
+fn cells_around(mesh: &HighOrderMesh, first: usize, count: usize) -> (Vec<usize>, Vec<usize>) {
+    let mut start = vec![0usize; count + 1];
+    for c in 0..mesh.n_cells() {
+        for &n in &mesh.cell(c)[..first] {
+            start[n + 1] += 1;
         }
     }
-    for i in 0..mesh.n_vertices {
+    for i in 0..count {
         start[i + 1] += start[i];
     }
     let mut fill = start.clone();
-    let mut cells = vec![0usize; start[mesh.n_vertices]];
-    for c in 0..nc {
-        for &v in &mesh.cell(c)[..nv] {
-            cells[fill[v]] = c;
-            fill[v] += 1;
+    let mut cells = vec![0usize; start[count]];
+    for c in 0..mesh.n_cells() {
+        for &n in &mesh.cell(c)[..first] {
+            cells[fill[n]] = c;
+            fill[n] += 1;
         }
     }
     (start, cells)

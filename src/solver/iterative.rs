@@ -379,35 +379,18 @@ impl IterativeSolver {
         budget: Option<usize>,
         residual: Option<Vec<f64>>,
     ) -> std::result::Result<usize, Breakdown> {
-        let setup = std::time::Instant::now();
         let kept = self.kept.take().filter(|_| mode == Mode::Fast && budget.is_some());
         let reused = kept.is_some();
         let start = self.power.take();
         let warm = start.is_some();
-        let lines = if mode == Mode::Fast && kept.is_none() { self.line_blocks(pattern, values)? } else { None };
+        let smoother = self.smoother_for(pattern, values, mode, kept, start)?;
         let exact = self.op.with(pattern, values);
-        // The copy holds this matrix unless a kept smoother's (an earlier one).
-        let single = mode == Mode::Fast && !reused && self.fine32.is_some() && self.params.single_precision_krylov;
-        let fine: &dyn Operator = match (&mut self.fine32, mode) {
-            (Some(f), Mode::Fast) => {
-                if kept.is_none() {
-                    f.update(pattern, values);
-                }
-                f
-            }
+        let fine: &dyn Operator = match (&self.fine32, mode) {
+            (Some(f), Mode::Fast) => f,
             _ => &exact,
         };
-        let smoother = match kept {
-            Some(kept) => kept,
-            None => {
-                let jacobi = diagonal_blocks(pattern, values, self.block, lines)?;
-                mode.smoother(fine, exact, jacobi, self.params.smoother, start)?
-            }
-        };
-        if let Some(c) = &mut self.coarse {
-            mode.update_coarse(c, exact, self.params.reuse_coarse)?;
-        }
-        self.setup_seconds += setup.elapsed().as_secs_f64();
+        // The copy holds this matrix unless a kept smoother's (an earlier one).
+        let single = mode == Mode::Fast && !reused && self.fine32.is_some() && self.params.single_precision_krylov;
         // A warm-started estimate can miss a mode that the new matrix has
         // and the previous one had not (a nearly degenerate cell): a slow
         // solve compares it with a fresh one (not changing the iterates).
@@ -459,6 +442,44 @@ impl IterativeSolver {
         }
         self.set_aside(smoother, outcome.is_ok() && mode == Mode::Fast);
         outcome
+    }
+
+    /// The fine smoother of a solve in `mode`: `kept` if given, else one
+    /// built for the matrix (its single-precision copy updated in the fast
+    /// mode, λ_max warm-started from `start`); and the coarse levels set up
+    /// for it unless kept. Timed as set-up.
+    fn smoother_for(
+        &mut self,
+        pattern: &SymmetricCsc,
+        values: &[f64],
+        mode: Mode,
+        kept: Option<Chebyshev>,
+        start: Option<Vec<f64>>,
+    ) -> std::result::Result<Chebyshev, Breakdown> {
+        let setup = std::time::Instant::now();
+        let lines = if mode == Mode::Fast && kept.is_none() { self.line_blocks(pattern, values)? } else { None };
+        let exact = self.op.with(pattern, values);
+        let fine: &dyn Operator = match (&mut self.fine32, mode) {
+            (Some(f), Mode::Fast) => {
+                if kept.is_none() {
+                    f.update(pattern, values);
+                }
+                f
+            }
+            _ => &exact,
+        };
+        let smoother = match kept {
+            Some(kept) => kept,
+            None => {
+                let jacobi = diagonal_blocks(pattern, values, self.block, lines)?;
+                mode.smoother(fine, exact, jacobi, self.params.smoother, start)?
+            }
+        };
+        if let Some(c) = &mut self.coarse {
+            mode.update_coarse(c, exact, self.params.reuse_coarse)?;
+        }
+        self.setup_seconds += setup.elapsed().as_secs_f64();
+        Ok(smoother)
     }
 
     /// After a solve, keep `smoother` if it may serve the next one (with the
