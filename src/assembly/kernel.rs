@@ -208,6 +208,9 @@ impl LinearElasticKernel {
     /// y_e = K_e u_e without K_e, from the element's [`Self::point_factors`]:
     /// at each point, ∇u = (∂u/∂ξ) J⁻¹, σ = λ tr(∇u) I + μ (∇u + ∇uᵀ), and
     /// y_a += w det J σ J⁻ᵀ ∂N_a/∂ξ: about a sixth of the time of K_e at p = 4.
+    /// The products use [`Self::apply4`], four cells at once; this one is
+    /// the tests' reference.
+    #[cfg(test)]
     pub fn apply<const D: usize>(&self, factors: &[f64], ue: &[f64], ye: &mut [f64], ws: &mut ApplyWorkspace) {
         crate::linalg::with_avx2(
             #[inline(always)]
@@ -215,6 +218,7 @@ impl LinearElasticKernel {
         )
     }
 
+    #[cfg(test)]
     #[inline(always)]
     fn apply_in<const D: usize>(&self, factors: &[f64], ue: &[f64], ye: &mut [f64], ws: &mut ApplyWorkspace) {
         self.cache.by_point.jacobians_into::<D>(ue, &mut ws.grad);
@@ -305,6 +309,176 @@ impl LinearElasticKernel {
                     }
                 }
                 ye[a * D + i] = acc.iter().sum::<f64>() + tail;
+            }
+        }
+    }
+}
+
+/// Cells in the lanes of [`LinearElasticKernel::apply4`].
+pub const CELL_LANES: usize = 4;
+
+impl LinearElasticKernel {
+    /// [`Self::apply`] on four cells at once, one in each lane of the
+    /// vectors: `factors4[(k * nq + q) * 4 + l]` is [`Self::point_factors`]'s
+    /// value k at point q of cell l, and `ue4`, `ye4` hold local dof d of
+    /// cell l at `d * 4 + l`. Each load of the reference gradients serves
+    /// the four cells, and no sum runs across lanes: at p = 4 in 3D about
+    /// a third of the time of four calls of [`Self::apply`]. A lane of zero
+    /// factors (a cell past the last) gives zeros.
+    pub fn apply4<const D: usize>(&self, factors4: &[f64], ue4: &[f64], ye4: &mut [f64]) {
+        let c = &self.cache;
+        let (grads, n, nq, m) = (&c.ref_grads[..], c.n_basis, c.n_points(), self.material);
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+            // SAFETY: the processor supports AVX2 and FMA (checked just above).
+            unsafe { avx2::apply4::<D>(grads, n, nq, m, factors4, ue4, ye4) };
+            return;
+        }
+        apply4_portable::<D>(grads, n, nq, m, factors4, ue4, ye4);
+    }
+}
+
+/// [`LinearElasticKernel::apply4`] lane by lane, with the operations of
+/// its AVX2 version in the same order and the same fused multiply-adds:
+/// bitwise the same results on every processor.
+fn apply4_portable<const D: usize>(
+    grads: &[f64],
+    n: usize,
+    nq: usize,
+    m: LinearElastic,
+    factors4: &[f64],
+    ue4: &[f64],
+    ye4: &mut [f64],
+) {
+    const L: usize = CELL_LANES;
+    let ye4 = &mut ye4[..n * D * L];
+    ye4.fill(0.0);
+    for q in 0..nq {
+        let gq = &grads[q * n * D..][..n * D];
+        for l in 0..L {
+            let f = |k: usize| factors4[(k * nq + q) * L + l];
+            let mut g = [[0.0; D]; D];
+            for (ga, ua) in gq.chunks_exact(D).zip(ue4.chunks_exact(D * L)) {
+                for i in 0..D {
+                    for j in 0..D {
+                        g[i][j] = ua[i * L + l].mul_add(ga[j], g[i][j]);
+                    }
+                }
+            }
+            let sigma = stress_at::<D>(&f, &g, m);
+            let p: [[f64; D]; D] = std::array::from_fn(|i| {
+                std::array::from_fn(|k| {
+                    (1..D).fold(sigma[i][0] * f(k * D), |v, j| sigma[i][j].mul_add(f(k * D + j), v))
+                })
+            });
+            for (ga, ya) in gq.chunks_exact(D).zip(ye4.chunks_exact_mut(D * L)) {
+                for i in 0..D {
+                    for k in 0..D {
+                        ya[i * L + l] = p[i][k].mul_add(ga[k], ya[i * L + l]);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// w det J σ at a point, σ = λ tr H I + μ (H + Hᵀ) with H = (∂u/∂ξ) J⁻¹,
+/// from J⁻¹ (row-major, `f(k)` for k < D²) and w det J (`f(D²)`).
+#[inline(always)]
+fn stress_at<const D: usize>(f: impl Fn(usize) -> f64, g: &[[f64; D]; D], m: LinearElastic) -> [[f64; D]; D] {
+    let h: [[f64; D]; D] = std::array::from_fn(|i| {
+        std::array::from_fn(|j| (1..D).fold(g[i][0] * f(j), |v, k| g[i][k].mul_add(f(k * D + j), v)))
+    });
+    let w = f(D * D);
+    let div = (1..D).fold(h[0][0], |v, k| v + h[k][k]);
+    let (wmu, diag) = (w * m.mu, w * (m.lambda * div));
+    std::array::from_fn(|i| std::array::from_fn(|j| wmu * (h[i][j] + h[j][i]) + if i == j { diag } else { 0.0 }))
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::CELL_LANES as L;
+    use crate::material::LinearElastic;
+    use std::arch::x86_64::*;
+
+    /// The four f64 from `x[0]` on (a checked slice: out of bounds panics).
+    #[inline(always)]
+    unsafe fn load(x: &[f64]) -> __m256d {
+        let x = &x[..4];
+        _mm256_loadu_pd(x.as_ptr())
+    }
+
+    /// [`super::LinearElasticKernel::apply4`], the four cells in the lanes
+    /// of one AVX2 vector.
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn apply4<const D: usize>(
+        grads: &[f64],
+        n: usize,
+        nq: usize,
+        m: LinearElastic,
+        factors4: &[f64],
+        ue4: &[f64],
+        ye4: &mut [f64],
+    ) {
+        let (ue4, ye4) = (&ue4[..n * D * L], &mut ye4[..n * D * L]);
+        ye4.fill(0.0);
+        let (lam, mu) = (_mm256_set1_pd(m.lambda), _mm256_set1_pd(m.mu));
+        let zero = _mm256_setzero_pd();
+        for q in 0..nq {
+            let gq = &grads[q * n * D..][..n * D];
+            let f = |k: usize| load(&factors4[(k * nq + q) * L..]);
+            // ∂u_i/∂ξ_j at q.
+            let mut g = [[zero; 3]; 3];
+            for (ga, ua) in gq.chunks_exact(D).zip(ue4.chunks_exact(D * L)) {
+                for i in 0..D {
+                    let u = load(&ua[i * L..]);
+                    for j in 0..D {
+                        g[i][j] = _mm256_fmadd_pd(u, _mm256_set1_pd(ga[j]), g[i][j]);
+                    }
+                }
+            }
+            // H = (∂u/∂ξ) J⁻¹, then w det J σ as in super::stress_at.
+            let mut h = [[zero; 3]; 3];
+            for i in 0..D {
+                for j in 0..D {
+                    h[i][j] = _mm256_mul_pd(g[i][0], f(j));
+                    for k in 1..D {
+                        h[i][j] = _mm256_fmadd_pd(g[i][k], f(k * D + j), h[i][j]);
+                    }
+                }
+            }
+            let w = f(D * D);
+            let mut div = h[0][0];
+            for k in 1..D {
+                div = _mm256_add_pd(div, h[k][k]);
+            }
+            let (wmu, diag) = (_mm256_mul_pd(w, mu), _mm256_mul_pd(w, _mm256_mul_pd(lam, div)));
+            let mut sigma = [[zero; 3]; 3];
+            for i in 0..D {
+                for j in 0..D {
+                    let s = _mm256_mul_pd(wmu, _mm256_add_pd(h[i][j], h[j][i]));
+                    sigma[i][j] = _mm256_add_pd(s, if i == j { diag } else { zero });
+                }
+            }
+            // P = σ J⁻ᵀ, then y_(a i) += Σ_k P_ik ∂N_a/∂ξ_k.
+            let mut p = [[zero; 3]; 3];
+            for i in 0..D {
+                for k in 0..D {
+                    p[i][k] = _mm256_mul_pd(sigma[i][0], f(k * D));
+                    for j in 1..D {
+                        p[i][k] = _mm256_fmadd_pd(sigma[i][j], f(k * D + j), p[i][k]);
+                    }
+                }
+            }
+            for (ga, ya) in gq.chunks_exact(D).zip(ye4.chunks_exact_mut(D * L)) {
+                for i in 0..D {
+                    let y = &mut ya[i * L..][..L];
+                    let mut v = _mm256_loadu_pd(y.as_ptr());
+                    for k in 0..D {
+                        v = _mm256_fmadd_pd(p[i][k], _mm256_set1_pd(ga[k]), v);
+                    }
+                    _mm256_storeu_pd(y.as_mut_ptr(), v);
+                }
             }
         }
     }
@@ -500,6 +674,56 @@ mod tests {
             check::<3>(Simplex::Tet, p);
         }
         check::<3>(Simplex::Tet, 5);
+    }
+
+    /// Four cells in the lanes: each lane is [`LinearElasticKernel::apply`]
+    /// of its cell, a lane of zero factors gives zeros, and the AVX2 version
+    /// is bitwise the portable one.
+    #[test]
+    fn four_cells_in_lanes_are_four_applies() {
+        fn check<const D: usize>(simplex: Simplex, p: usize) {
+            let (k, xe) = curved_element(simplex, p);
+            let (nd, nq, nf) = (xe.len(), k.cache.n_points(), factors_per_point(D) * k.cache.n_points());
+            let mut f4 = vec![0.0; nf * CELL_LANES];
+            let mut u4 = vec![0.0; nd * CELL_LANES];
+            let mut cells = Vec::new();
+            // Three cells, each the curved one stretched differently; lane 3 empty.
+            for l in 0..3 {
+                let x: Vec<f64> = xe.iter().enumerate().map(|(i, v)| v * (1.0 + 0.2 * l as f64 * (i % D) as f64)).collect();
+                let mut f = vec![0.0; nf];
+                k.point_factors::<D>(&x, &mut f, &mut Vec::new()).unwrap();
+                let ue: Vec<f64> = (0..nd).map(|i| ((i * 5 + l * 11) as f64 * 0.31).sin()).collect();
+                for (i, v) in f.iter().enumerate() {
+                    f4[i * CELL_LANES + l] = *v;
+                }
+                for (i, v) in ue.iter().enumerate() {
+                    u4[i * CELL_LANES + l] = *v;
+                }
+                cells.push((f, ue));
+            }
+            for i in 0..nd {
+                u4[i * CELL_LANES + 3] = 1.0;
+            }
+            let mut y4 = vec![f64::NAN; nd * CELL_LANES];
+            k.apply4::<D>(&f4, &u4, &mut y4);
+            let (mut ye, mut ws) = (vec![0.0; nd], ApplyWorkspace::default());
+            for (l, (f, ue)) in cells.iter().enumerate() {
+                k.apply::<D>(f, ue, &mut ye, &mut ws);
+                let scale = ye.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                for (i, y) in ye.iter().enumerate() {
+                    let got = y4[i * CELL_LANES + l];
+                    assert!((got - y).abs() < 1e-13 * scale, "{simplex:?} p = {p}, lane {l}: {got} against {y}");
+                }
+            }
+            assert!((0..nd).all(|i| y4[i * CELL_LANES + 3] == 0.0), "{simplex:?} p = {p}: the empty lane");
+            let mut portable = vec![f64::NAN; nd * CELL_LANES];
+            apply4_portable::<D>(&k.cache.ref_grads, k.cache.n_basis, nq, k.material, &f4, &u4, &mut portable);
+            assert!(portable.iter().zip(&y4).all(|(a, b)| a.to_bits() == b.to_bits()), "{simplex:?} p = {p}");
+        }
+        for p in [1, 2, 4] {
+            check::<2>(Simplex::Tri, p);
+            check::<3>(Simplex::Tet, p);
+        }
     }
 
     #[test]
