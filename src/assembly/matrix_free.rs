@@ -9,7 +9,7 @@
 //! matrix's column at each interior dof. W also recovers the interior
 //! values.
 
-use super::kernel::{factors_per_point, ApplyWorkspace, LinearElasticKernel, CELL_LANES};
+use super::kernel::{factors_per_point, LinearElasticKernel, CELL_LANES};
 use super::System;
 #[cfg(test)]
 use super::InteriorRecovery;
@@ -99,30 +99,17 @@ impl System {
         let keep = interior.as_mut().map_or(&mut none, |r| &mut r.keep);
         keep.clear();
         keep.resize(stride * mesh.n_cells(), 0.0);
-        factors
-            .par_chunks_mut(per_cell)
-            .zip(kii.par_chunks_mut(kii_stride))
-            .zip(keep.par_chunks_mut(stride))
-            .enumerate()
-            .try_for_each_init(
-                || (vec![0.0; nd], vec![0.0; ni * ni], vec![0.0; nd], Vec::new(), ApplyWorkspace::default()),
-                |(xe, lu, y, jac, ws), (c, ((f, kii), keep))| -> Result<()> {
-                    for (a, &n) in mesh.cell(c).iter().enumerate() {
-                        xe[a * D..(a + 1) * D].copy_from_slice(&coords[n * D..(n + 1) * D]);
-                    }
-                    kernel.point_factors::<D>(xe, f, jac).map_err(|det_j| {
-                        Error::invalid_element(Some(c), format!("cell {c} has a non-positive Jacobian ({det_j:.3e})"))
-                    })?;
-                    if ni == 0 {
-                        return Ok(());
-                    }
-                    let (w, _g) = keep.split_at_mut(ni * nb);
-                    interior_columns::<D>(kernel, f, (&ii, &bb), kii, w, (lu, y, ws)).map_err(|_| {
-                        Error::invalid_element(Some(c), format!("cell {c}: the stiffness of its interior nodes is singular"))
-                    })
-                },
-            )?;
-        self.interior = interior;
+        factors[..per_cell * mesh.n_cells()].par_chunks_mut(per_cell).enumerate().try_for_each_init(
+            || (vec![0.0; nd], Vec::new()),
+            |(xe, jac), (c, f)| {
+                for (a, &n) in mesh.cell(c).iter().enumerate() {
+                    xe[a * D..(a + 1) * D].copy_from_slice(&coords[n * D..(n + 1) * D]);
+                }
+                kernel.point_factors::<D>(xe, f, jac).map_err(|det_j| {
+                    Error::invalid_element(Some(c), format!("cell {c} has a non-positive Jacobian ({det_j:.3e})"))
+                })
+            },
+        )?;
         // Cell by cell, then lane by lane within each group.
         factors.par_chunks_mut(per_cell * CELL_LANES).for_each_init(Vec::new, |cells, group| {
             cells.clear();
@@ -133,6 +120,24 @@ impl System {
                 }
             }
         });
+        if ni > 0 {
+            let dofs = (&ii[..], &bb[..]);
+            factors
+                .par_chunks(per_cell * CELL_LANES)
+                .zip(kii.par_chunks_mut(kii_stride * CELL_LANES))
+                .zip(keep.par_chunks_mut(stride * CELL_LANES))
+                .enumerate()
+                .try_for_each_init(
+                    || (vec![0.0; nd * CELL_LANES], vec![0.0; nd * CELL_LANES], vec![0.0; ni * ni]),
+                    |scratch, (g, ((f4, kii), keep))| {
+                        interior_columns::<D>(kernel, f4, dofs, kii, keep, scratch).map_err(|l| {
+                            let c = g * CELL_LANES + l;
+                            Error::invalid_element(Some(c), format!("cell {c}: the stiffness of its interior nodes is singular"))
+                        })
+                    },
+                )?;
+        }
+        self.interior = interior;
         let layout = match &self.cell_layout {
             Some(layout) => layout.clone(),
             None => self.cell_layout.insert(Arc::new(self.layout::<D>(mesh, &bb))).clone(),
@@ -312,29 +317,42 @@ impl Product<'_> {
     }
 }
 
-/// K_II of a cell (`kii`, the interior dofs ii in order) and W = K_II⁻¹ K_IB
-/// (`w`, columns in the order of `bb`), from the cell matrix's columns at
-/// the interior dofs (K is symmetric); `lu` holds the factors of K_II.
+/// K_II (`kii`, the interior dofs ii in order) and W = K_II⁻¹ K_IB (the
+/// first ni·nb values of each cell's `keep`, columns in the order of `bb`)
+/// of a group of cells (up to [`CELL_LANES`], `factors4` as
+/// [`LinearElasticKernel::apply4`] reads them), from the cell matrices'
+/// columns at the interior dofs (K is symmetric); `lu` holds the factors of
+/// K_II. Err(l): the interior block of the group's cell l is singular.
 fn interior_columns<const D: usize>(
     kernel: &LinearElasticKernel,
-    factors: &[f64],
+    factors4: &[f64],
     (ii, bb): (&[usize], &[usize]),
     kii: &mut [f64],
-    w: &mut [f64],
-    (lu, y, ws): (&mut [f64], &mut [f64], &mut ApplyWorkspace),
-) -> std::result::Result<(), ()> {
+    keep: &mut [f64],
+    (ue4, ye4, lu): &mut (Vec<f64>, Vec<f64>, Vec<f64>),
+) -> std::result::Result<(), usize> {
+    const L: usize = CELL_LANES;
     let (ni, nb) = (ii.len(), bb.len());
+    let (kii_stride, stride) = (ni * ni, ni * (nb + 1));
+    let lanes = kii.len() / kii_stride;
     for (j, &dj) in ii.iter().enumerate() {
-        kernel.apply_unit::<D>(factors, dj, y, ws);
-        for (i, &di) in ii.iter().enumerate() {
-            kii[i * ni + j] = y[di];
-        }
-        for (b, &db) in bb.iter().enumerate() {
-            w[j * nb + b] = y[db];
+        ue4.fill(0.0);
+        ue4[dj * L..][..L].fill(1.0);
+        kernel.apply4::<D>(factors4, ue4, ye4);
+        for l in 0..lanes {
+            for (i, &di) in ii.iter().enumerate() {
+                kii[l * kii_stride + i * ni + j] = ye4[di * L + l];
+            }
+            for (b, &db) in bb.iter().enumerate() {
+                keep[l * stride + j * nb + b] = ye4[db * L + l];
+            }
         }
     }
-    lu.copy_from_slice(kii);
-    solve_in_place(lu, ni, w, nb)
+    for l in 0..lanes {
+        lu.copy_from_slice(&kii[l * kii_stride..][..kii_stride]);
+        solve_in_place(lu, ni, &mut keep[l * stride..][..ni * nb], nb).map_err(|_| l)?;
+    }
+    Ok(())
 }
 
 /// A = `a` (n × n, row-major) factored by Gaussian elimination with partial

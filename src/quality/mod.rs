@@ -526,7 +526,11 @@ mod tests {
                             let j = linalg::det(dim, &mapping::jacobian(dim, &xe, check.points.grads_at(q)));
                             j.is_nan() || j <= 0.0
                         });
-                        assert_eq!(check.element_is_invalid(&xe, false), slow, "{simplex:?} p={p} amplitude {amplitude}");
+                        assert_eq!(
+                            check.element_is_invalid(&xe, false),
+                            slow,
+                            "{simplex:?} p={p} amplitude {amplitude}"
+                        );
                         let cells: Vec<usize> = (0..xe.len() / dim).collect();
                         assert_eq!(check.invalid_cells(&xe, &cells, false), if slow { vec![0] } else { vec![] });
                         if slow {
