@@ -271,12 +271,17 @@ impl Product<'_> {
         let lanes = (self.op.n_cells - first).min(L);
         let mut live = [false; L];
         for (l, live) in live.iter_mut().enumerate() {
-            let slots = &self.op.layout.slots[(first + l.min(lanes - 1)) * nb..][..nb];
+            if l >= lanes {
+                // Past the last cell: zero factors, and zero values.
+                self.bb.iter().for_each(|&b| s.ue4[b * L + l] = 0.0);
+                continue;
+            }
+            let slots = &self.op.layout.slots[(first + l) * nb..][..nb];
             for (&b, &k) in self.bb.iter().zip(slots) {
-                let v = match (l < lanes, k < n_system) {
-                    (false, _) => 0.0,
-                    (true, true) => self.x.map_or(0.0, |x| x[k]),
-                    (true, false) => self.prescribed.map_or(0.0, |p| p[k - n_system]),
+                let v = if k < n_system {
+                    self.x.map_or(0.0, |x| x[k])
+                } else {
+                    self.prescribed.map_or(0.0, |p| p[k - n_system])
                 };
                 s.ue4[b * L + l] = v;
                 *live |= v != 0.0;
