@@ -210,31 +210,22 @@ impl LinearElasticKernel {
     /// in the lanes. A lane of zero factors (a cell past the last) gives
     /// zeros.
     pub fn apply4<const D: usize>(&self, factors4: &[f64], ue4: &[f64], ye4: &mut [f64]) {
-        let c = &self.cache;
-        let (grads, n, nq, m) = (&c.ref_grads[..], c.n_basis, c.n_points(), self.material);
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
             // SAFETY: the processor supports AVX2 and FMA (checked just above).
-            unsafe { avx2::apply4::<D>(grads, n, nq, m, factors4, ue4, ye4) };
+            unsafe { avx2::apply4::<D>(self, factors4, ue4, ye4) };
             return;
         }
-        apply4_portable::<D>(grads, n, nq, m, factors4, ue4, ye4);
+        apply4_portable::<D>(self, factors4, ue4, ye4);
     }
 }
 
 /// [`LinearElasticKernel::apply4`] lane by lane, with the operations of
 /// its AVX2 version in the same order and the same fused multiply-adds:
 /// bitwise the same results on every processor.
-fn apply4_portable<const D: usize>(
-    grads: &[f64],
-    n: usize,
-    nq: usize,
-    m: LinearElastic,
-    factors4: &[f64],
-    ue4: &[f64],
-    ye4: &mut [f64],
-) {
+fn apply4_portable<const D: usize>(k: &LinearElasticKernel, factors4: &[f64], ue4: &[f64], ye4: &mut [f64]) {
     const L: usize = CELL_LANES;
+    let (grads, n, nq, m) = (&k.cache.ref_grads[..], k.cache.n_basis, k.cache.n_points(), k.material);
     let ye4 = &mut ye4[..n * D * L];
     ye4.fill(0.0);
     for q in 0..nq {
@@ -281,8 +272,7 @@ fn stress_at<const D: usize>(f: impl Fn(usize) -> f64, g: &[[f64; D]; D], m: Lin
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    use super::CELL_LANES as L;
-    use crate::material::LinearElastic;
+    use super::{LinearElasticKernel, CELL_LANES as L};
     use std::arch::x86_64::*;
 
     /// The four f64 from `x[0]` on (a checked slice: out of bounds panics).
@@ -296,14 +286,12 @@ mod avx2 {
     /// of one AVX2 vector.
     #[target_feature(enable = "avx2,fma")]
     pub(super) unsafe fn apply4<const D: usize>(
-        grads: &[f64],
-        n: usize,
-        nq: usize,
-        m: LinearElastic,
+        k: &LinearElasticKernel,
         factors4: &[f64],
         ue4: &[f64],
         ye4: &mut [f64],
     ) {
+        let (grads, n, nq, m) = (&k.cache.ref_grads[..], k.cache.n_basis, k.cache.n_points(), k.material);
         let (ue4, ye4) = (&ue4[..n * D * L], &mut ye4[..n * D * L]);
         ye4.fill(0.0);
         let (lam, mu) = (_mm256_set1_pd(m.lambda), _mm256_set1_pd(m.mu));
@@ -517,7 +505,7 @@ mod tests {
     fn four_cells_in_lanes_are_their_element_matrices_products() {
         fn check<const D: usize>(simplex: Simplex, p: usize) {
             let (k, xe) = curved_element(simplex, p);
-            let (nd, nq, nf) = (xe.len(), k.cache.n_points(), factors_per_point(D) * k.cache.n_points());
+            let (nd, nf) = (xe.len(), factors_per_point(D) * k.cache.n_points());
             let mut f4 = vec![0.0; nf * CELL_LANES];
             let mut u4 = vec![0.0; nd * CELL_LANES];
             let mut want = Vec::new();
@@ -551,7 +539,7 @@ mod tests {
             }
             assert!((0..nd).all(|i| y4[i * CELL_LANES + 3] == 0.0), "{simplex:?} p = {p}: the empty lane");
             let mut portable = vec![f64::NAN; nd * CELL_LANES];
-            apply4_portable::<D>(&k.cache.ref_grads, k.cache.n_basis, nq, k.material, &f4, &u4, &mut portable);
+            apply4_portable::<D>(&k, &f4, &u4, &mut portable);
             assert!(portable.iter().zip(&y4).all(|(a, b)| a.to_bits() == b.to_bits()), "{simplex:?} p = {p}");
             // Rigid translations, in every lane.
             let shift: Vec<f64> = (0..nd * CELL_LANES).map(|i| if (i / CELL_LANES).is_multiple_of(D) { 1.0 } else { 0.0 }).collect();
