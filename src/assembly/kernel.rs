@@ -174,13 +174,7 @@ impl LinearElasticKernel {
         let nq = c.n_points();
         c.by_point.jacobians_into::<D>(xe, jac);
         for q in 0..nq {
-            let mut j = [[0.0; 3]; 3];
-            for (r, row) in j.iter_mut().enumerate().take(D) {
-                for (k, v) in row.iter_mut().enumerate().take(D) {
-                    *v = jac[(r * D + k) * nq + q];
-                }
-            }
-            let (jinv, det) = linalg::inverse(D, &j);
+            let (jinv, det) = linalg::inverse(D, &mapping::jacobian_at::<D>(jac, nq, q));
             if det.is_nan() || det <= 0.0 {
                 return Err(det);
             }

@@ -137,6 +137,19 @@ impl PointGradients {
     }
 }
 
+/// ∂x/∂ξ at point q of `jac`, laid out as [`PointGradients::jacobians_into`]
+/// writes it for `nq` points.
+#[inline(always)]
+pub fn jacobian_at<const D: usize>(jac: &[f64], nq: usize, q: usize) -> Mat3 {
+    let mut m = [[0.0; 3]; 3];
+    for (i, row) in m.iter_mut().enumerate().take(D) {
+        for (j, v) in row.iter_mut().enumerate().take(D) {
+            *v = jac[(i * D + j) * nq + q];
+        }
+    }
+    m
+}
+
 /// ∂x/∂ξ at one point: `J[i][j] = Σ_a x[a*dim+i] · grads[a*dim+j]`, where
 /// `grads[a*dim+j] = ∂N_a/∂ξ_j`.
 #[inline]

@@ -130,12 +130,7 @@ fn element_quality_in<const D: usize>(
     cache.by_point.jacobians_into::<D>(xe, jq);
     let mut ext = Extremes::new();
     for q in 0..nq {
-        let mut dxdxi = [[0.0; 3]; 3];
-        for (i, row) in dxdxi.iter_mut().enumerate().take(D) {
-            for (j, v) in row.iter_mut().enumerate().take(D) {
-                *v = jq[(i * D + j) * nq + q];
-            }
-        }
+        let dxdxi = mapping::jacobian_at::<D>(jq, nq, q);
         let f = linalg::matmul(D, &dxdxi, &jx_inv);
         let (i1, i2) = strain_invariants(D, &f);
         // Q3 from det ∂x/∂ξ itself: the scaled Jacobian is a ratio, so the
@@ -360,13 +355,7 @@ impl ValidityCheck {
             || self.points.by_point.jacobians_into::<D>(xe, jac),
         );
         (0..nq).any(|q| {
-            let mut m = [[0.0; 3]; 3];
-            for (i, row) in m.iter_mut().enumerate().take(D) {
-                for (j, v) in row.iter_mut().enumerate().take(D) {
-                    *v = jac[(i * D + j) * nq + q];
-                }
-            }
-            let j = linalg::det(D, &m);
+            let j = linalg::det(D, &mapping::jacobian_at::<D>(jac, nq, q));
             j.is_nan() || j <= 0.0
         })
     }
