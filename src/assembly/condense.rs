@@ -223,6 +223,9 @@ fn schur_update(
 pub struct InteriorRecovery {
     pub(super) split: LocalSplit,
     pub(super) keep: Vec<f64>,
+    /// The cell of each of `keep`'s chunks, when they are not in the
+    /// mesh's order (the products from the cells keep them in theirs).
+    pub(super) order: Option<std::sync::Arc<[usize]>>,
 }
 
 impl InteriorRecovery {
@@ -239,7 +242,8 @@ impl InteriorRecovery {
             .keep
             .par_chunks_exact(self.split.stride())
             .enumerate()
-            .flat_map_iter(|(c, keep)| {
+            .flat_map_iter(|(k, keep)| {
+                let c = self.cell(k);
                 let ub: Vec<f64> = (self.split.boundary.iter())
                     .map(|&l| {
                         let dof = local(c, l);
@@ -253,11 +257,17 @@ impl InteriorRecovery {
                 (0..ni).map(move |i| g[i] - w[i * nb..(i + 1) * nb].iter().zip(&ub).map(|(a, b)| a * b).sum::<f64>())
             })
             .collect();
-        for (c, values) in interior.chunks_exact(ni).enumerate() {
+        for (k, values) in interior.chunks_exact(ni).enumerate() {
+            let c = self.cell(k);
             for (&l, &v) in self.split.interior.iter().zip(values) {
                 u[dofs.free_index(local(c, l)).expect("interior dofs are free")] = v;
             }
         }
+    }
+
+    /// The cell whose W and g are `keep`'s chunk k.
+    fn cell(&self, k: usize) -> usize {
+        self.order.as_ref().map_or(k, |o| o[k])
     }
 }
 

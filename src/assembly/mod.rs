@@ -790,12 +790,13 @@ impl System {
         Ok(())
     }
 
-    /// The interior recovery of the last assembly (its buffer reused), or a
-    /// new one; None without condensation.
+    /// The interior recovery of the last assembly or cell operator (its
+    /// buffer reused, for cells in the mesh's order), or a new one; None
+    /// without condensation.
     fn take_interior(&mut self) -> Option<InteriorRecovery> {
         match (self.dofs.split.as_ref(), self.interior.take()) {
-            (Some(split), Some(r)) if r.split == *split => Some(r),
-            (Some(split), _) => Some(InteriorRecovery { split: split.clone(), keep: Vec::new() }),
+            (Some(split), Some(r)) if r.split == *split => Some(InteriorRecovery { order: None, ..r }),
+            (Some(split), _) => Some(InteriorRecovery { split: split.clone(), keep: Vec::new(), order: None }),
             (None, _) => None,
         }
     }
