@@ -136,6 +136,26 @@ pub fn matmul(dim: usize, a: &Mat3, b: &Mat3) -> Mat3 {
     c
 }
 
+/// aᵀb (the shorter length) in four partial sums, element k in sum k mod 4,
+/// added as (s0 + s1) + (s2 + s3) after them: the four chains run side by
+/// side, where one sum in order waits on each add before the next.
+#[inline]
+pub fn dot4(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let mut s = [0.0; 4];
+    for (a, b) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
+        for k in 0..4 {
+            s[k] += a[k] * b[k];
+        }
+    }
+    let tail = n - n % 4;
+    for (k, (a, b)) in a[tail..].iter().zip(&b[tail..]).enumerate() {
+        s[k] += a * b;
+    }
+    (s[0] + s[1]) + (s[2] + s[3])
+}
+
 /// `f()`, compiled for AVX2 and FMA when the processor has them (four
 /// doubles per vector instruction instead of the two of plain x86-64, for
 /// which the library is built). `f`, which must be a closure marked
@@ -164,6 +184,23 @@ pub fn with_avx2<R>(f: impl FnOnce() -> R) -> R {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn dot4_is_the_dot_product_in_four_partial_sums() {
+        // Integers: every order of the sums is exact, so dot4 must equal the
+        // plain sum at every length, tails of 0 to 3 included.
+        for n in 0..13 {
+            let a: Vec<f64> = (0..n).map(|i| (i * 7 % 5) as f64 - 2.0).collect();
+            let b: Vec<f64> = (0..n + 2).map(|i| (i * 3 % 11) as f64).collect();
+            let want: f64 = a.iter().zip(&b).map(|(x, y)| x * y).sum();
+            assert_eq!(dot4(&a, &b), want, "n = {n}");
+        }
+        // Element 4 goes to the first sum, where it cancels element 0 before
+        // the ones are added: 3, where the sum in order loses them to 1e16.
+        let a = [1e16, 1.0, 1.0, 1.0, -1e16];
+        assert_eq!(dot4(&a, &[1.0; 5]), 3.0);
+        assert_eq!(a.iter().sum::<f64>(), 0.0);
+    }
 
     #[test]
     fn cbrt_positive_is_within_an_ulp_of_the_correctly_rounded_root() {

@@ -238,25 +238,24 @@ impl InteriorRecovery {
         let known: &[f64] = u;
         let local = |c: usize, l: usize| mesh.cell(c)[l / dim] * dim + l % dim;
         // Per cell in parallel (reads only), then written in one pass.
-        let interior: Vec<f64> = self
-            .keep
-            .par_chunks_exact(self.split.stride())
-            .enumerate()
-            .flat_map_iter(|(k, keep)| {
+        let mut interior = vec![0.0; self.keep.len() / self.split.stride() * ni];
+        interior.par_chunks_mut(ni).zip(self.keep.par_chunks_exact(self.split.stride())).enumerate().for_each_init(
+            || vec![0.0; nb],
+            |ub, (k, (values, keep))| {
                 let c = self.cell(k);
-                let ub: Vec<f64> = (self.split.boundary.iter())
-                    .map(|&l| {
-                        let dof = local(c, l);
-                        match dofs.free_index(dof) {
-                            Some(f) => known[f],
-                            None => prescribed[dof],
-                        }
-                    })
-                    .collect();
+                for (v, &l) in ub.iter_mut().zip(&self.split.boundary) {
+                    let dof = local(c, l);
+                    *v = match dofs.free_index(dof) {
+                        Some(f) => known[f],
+                        None => prescribed[dof],
+                    };
+                }
                 let (w, g) = keep.split_at(ni * nb);
-                (0..ni).map(move |i| g[i] - w[i * nb..(i + 1) * nb].iter().zip(&ub).map(|(a, b)| a * b).sum::<f64>())
-            })
-            .collect();
+                for ((v, g), w) in values.iter_mut().zip(g).zip(w.chunks_exact(nb)) {
+                    *v = g - crate::linalg::dot4(w, ub);
+                }
+            },
+        );
         for (k, values) in interior.chunks_exact(ni).enumerate() {
             let c = self.cell(k);
             for (&l, &v) in self.split.interior.iter().zip(values) {

@@ -166,13 +166,21 @@ pub const fn factors_per_point(dim: usize) -> usize {
 
 impl LinearElasticKernel {
     /// What the element operator needs of the geometry `xe`, at every point
-    /// q: J⁻¹ (row-major, D × D) and the weight times det J, into
-    /// `factors[k * nq + q]` for k < D² + 1 (the points innermost).
+    /// q: J⁻¹ (row-major, D × D) and the weight times det J, into lane
+    /// `lane` of a group of [`CELL_LANES`] cells as [`Self::apply4`] reads
+    /// them: factor k at point q in `factors4[(k * nq + q) * CELL_LANES + lane]`.
     /// `Err(det J)` if the Jacobian is not positive at a point.
-    pub fn point_factors<const D: usize>(&self, xe: &[f64], factors: &mut [f64], jac: &mut Vec<f64>) -> Result<(), f64> {
+    pub fn point_factors<const D: usize>(
+        &self,
+        xe: &[f64],
+        factors4: &mut [f64],
+        lane: usize,
+        jac: &mut Vec<f64>,
+    ) -> Result<(), f64> {
         let c = &self.cache;
         let nq = c.n_points();
         c.by_point.jacobians_into::<D>(xe, jac);
+        let mut put = |k: usize, q: usize, v: f64| factors4[(k * nq + q) * CELL_LANES + lane] = v;
         for q in 0..nq {
             let (jinv, det) = linalg::inverse(D, &mapping::jacobian_at::<D>(jac, nq, q));
             if det.is_nan() || det <= 0.0 {
@@ -180,10 +188,10 @@ impl LinearElasticKernel {
             }
             for r in 0..D {
                 for k in 0..D {
-                    factors[(r * D + k) * nq + q] = jinv[r][k];
+                    put(r * D + k, q, jinv[r][k]);
                 }
             }
-            factors[D * D * nq + q] = c.weights[q] * det;
+            put(D * D, q, c.weights[q] * det);
         }
         Ok(())
     }
@@ -212,12 +220,60 @@ impl LinearElasticKernel {
         }
         apply4_portable::<D>(self, factors4, ue4, ye4);
     }
+
+    /// Column `dof` of the four cells' matrices, y_e = K_e e_dof, as
+    /// [`Self::apply4`] gives it for the unit vector (the same values) but
+    /// with ∂u/∂ξ read off the one node's reference gradient: about half
+    /// the work. The condensation's interior columns.
+    pub fn unit4<const D: usize>(&self, factors4: &[f64], dof: usize, ye4: &mut [f64]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+            // SAFETY: the processor supports AVX2 and FMA (checked just above).
+            unsafe { avx2::unit4::<D>(self, factors4, dof, ye4) };
+            return;
+        }
+        unit4_portable::<D>(self, factors4, dof, ye4);
+    }
 }
 
 /// [`LinearElasticKernel::apply4`] lane by lane, with the operations of
 /// its AVX2 version in the same order and the same fused multiply-adds:
 /// bitwise the same results on every processor.
 fn apply4_portable<const D: usize>(k: &LinearElasticKernel, factors4: &[f64], ue4: &[f64], ye4: &mut [f64]) {
+    const L: usize = CELL_LANES;
+    let ue4 = &ue4[..k.cache.n_basis * D * L];
+    each_point_portable::<D>(k, factors4, ye4, |gq, l| {
+        let mut g = [[0.0; D]; D];
+        for (ga, ua) in gq.chunks_exact(D).zip(ue4.chunks_exact(D * L)) {
+            for i in 0..D {
+                for j in 0..D {
+                    g[i][j] = ua[i * L + l].mul_add(ga[j], g[i][j]);
+                }
+            }
+        }
+        g
+    });
+}
+
+/// [`LinearElasticKernel::unit4`] as its AVX2 version computes it.
+fn unit4_portable<const D: usize>(k: &LinearElasticKernel, factors4: &[f64], dof: usize, ye4: &mut [f64]) {
+    let (a, i) = (dof / D, dof % D);
+    each_point_portable::<D>(k, factors4, ye4, |gq, _| {
+        let mut g = [[0.0; D]; D];
+        g[i].copy_from_slice(&gq[a * D..][..D]);
+        g
+    });
+}
+
+/// y_e = Σ_q, lane by lane, of the pushed-back stress of the gradient
+/// ∂u/∂ξ that `gradient` gives at the point (its reference gradients, lane).
+#[inline(always)]
+fn each_point_portable<const D: usize>(
+    k: &LinearElasticKernel,
+    factors4: &[f64],
+    ye4: &mut [f64],
+    gradient: impl Fn(&[f64], usize) -> [[f64; D]; D],
+) {
     const L: usize = CELL_LANES;
     let (grads, n, nq, m) = (&k.cache.ref_grads[..], k.cache.n_basis, k.cache.n_points(), k.material);
     let ye4 = &mut ye4[..n * D * L];
@@ -226,15 +282,7 @@ fn apply4_portable<const D: usize>(k: &LinearElasticKernel, factors4: &[f64], ue
         let gq = &grads[q * n * D..][..n * D];
         for l in 0..L {
             let f = |k: usize| factors4[(k * nq + q) * L + l];
-            let mut g = [[0.0; D]; D];
-            for (ga, ua) in gq.chunks_exact(D).zip(ue4.chunks_exact(D * L)) {
-                for i in 0..D {
-                    for j in 0..D {
-                        g[i][j] = ua[i * L + l].mul_add(ga[j], g[i][j]);
-                    }
-                }
-            }
-            let sigma = stress_at::<D>(&f, &g, m);
+            let sigma = stress_at::<D>(&f, &gradient(gq, l), m);
             let p: [[f64; D]; D] = std::array::from_fn(|i| {
                 std::array::from_fn(|k| {
                     (1..D).fold(sigma[i][0] * f(k * D), |v, j| sigma[i][j].mul_add(f(k * D + j), v))
@@ -285,16 +333,10 @@ mod avx2 {
         ue4: &[f64],
         ye4: &mut [f64],
     ) {
-        let (grads, n, nq, m) = (&k.cache.ref_grads[..], k.cache.n_basis, k.cache.n_points(), k.material);
-        let (ue4, ye4) = (&ue4[..n * D * L], &mut ye4[..n * D * L]);
-        ye4.fill(0.0);
-        let (lam, mu) = (_mm256_set1_pd(m.lambda), _mm256_set1_pd(m.mu));
-        let zero = _mm256_setzero_pd();
-        for q in 0..nq {
-            let gq = &grads[q * n * D..][..n * D];
-            let f = |k: usize| load(&factors4[(k * nq + q) * L..]);
-            // ∂u_i/∂ξ_j at q.
-            let mut g = [[zero; 3]; 3];
+        let ue4 = &ue4[..k.cache.n_basis * D * L];
+        each_point::<D>(k, factors4, ye4, |gq| {
+            // ∂u_i/∂ξ_j at the point.
+            let mut g = [[_mm256_setzero_pd(); 3]; 3];
             for (ga, ua) in gq.chunks_exact(D).zip(ue4.chunks_exact(D * L)) {
                 for i in 0..D {
                     let u = load(&ua[i * L..]);
@@ -303,6 +345,44 @@ mod avx2 {
                     }
                 }
             }
+            g
+        });
+    }
+
+    /// [`super::LinearElasticKernel::unit4`]: ∂u/∂ξ is the node's
+    /// reference gradient in the dof's row.
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn unit4<const D: usize>(k: &LinearElasticKernel, factors4: &[f64], dof: usize, ye4: &mut [f64]) {
+        let (a, i) = (dof / D, dof % D);
+        each_point::<D>(k, factors4, ye4, |gq| {
+            let mut g = [[_mm256_setzero_pd(); 3]; 3];
+            for j in 0..D {
+                g[i][j] = _mm256_set1_pd(gq[a * D + j]);
+            }
+            g
+        });
+    }
+
+    /// y_e = Σ_q of the pushed-back stress of the gradient ∂u/∂ξ that
+    /// `gradient` gives at the point (from its reference gradients), the four
+    /// cells in the lanes.
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    unsafe fn each_point<const D: usize>(
+        k: &LinearElasticKernel,
+        factors4: &[f64],
+        ye4: &mut [f64],
+        gradient: impl Fn(&[f64]) -> [[__m256d; 3]; 3],
+    ) {
+        let (grads, n, nq, m) = (&k.cache.ref_grads[..], k.cache.n_basis, k.cache.n_points(), k.material);
+        let ye4 = &mut ye4[..n * D * L];
+        ye4.fill(0.0);
+        let (lam, mu) = (_mm256_set1_pd(m.lambda), _mm256_set1_pd(m.mu));
+        let zero = _mm256_setzero_pd();
+        for q in 0..nq {
+            let gq = &grads[q * n * D..][..n * D];
+            let f = |k: usize| load(&factors4[(k * nq + q) * L..]);
+            let g = gradient(gq);
             // H = (∂u/∂ξ) J⁻¹, then w det J σ as in super::stress_at.
             let mut h = [[zero; 3]; 3];
             for i in 0..D {
@@ -494,7 +574,8 @@ mod tests {
     /// K_e u computed without K_e, four cells in the lanes, matches each
     /// element matrix's product in 2D and 3D on curved cells; a lane of zero
     /// factors gives zeros; rigid translations are in the kernel; the AVX2
-    /// version is bitwise the portable one; an inverted cell is refused.
+    /// version is bitwise the portable one; the unit columns are the
+    /// products with unit vectors; an inverted cell is refused.
     #[test]
     fn four_cells_in_lanes_are_their_element_matrices_products() {
         fn check<const D: usize>(simplex: Simplex, p: usize) {
@@ -506,14 +587,10 @@ mod tests {
             // Three cells, the curved one stretched differently; lane 3 empty.
             for l in 0..3 {
                 let x: Vec<f64> = xe.iter().enumerate().map(|(i, v)| v * (1.0 + 0.2 * l as f64 * (i % D) as f64)).collect();
-                let mut f = vec![0.0; nf];
-                k.point_factors::<D>(&x, &mut f, &mut Vec::new()).unwrap();
+                k.point_factors::<D>(&x, &mut f4, l, &mut Vec::new()).unwrap();
                 let mut ke = vec![0.0; nd * nd];
                 k.stiffness_into(&x, &mut ke, &mut k.workspace()).unwrap();
                 let ue: Vec<f64> = (0..nd).map(|i| ((i * 5 + l * 11) as f64 * 0.31).sin()).collect();
-                for (i, v) in f.iter().enumerate() {
-                    f4[i * CELL_LANES + l] = *v;
-                }
                 for (i, v) in ue.iter().enumerate() {
                     u4[i * CELL_LANES + l] = *v;
                 }
@@ -535,6 +612,17 @@ mod tests {
             let mut portable = vec![f64::NAN; nd * CELL_LANES];
             apply4_portable::<D>(&k, &f4, &u4, &mut portable);
             assert!(portable.iter().zip(&y4).all(|(a, b)| a.to_bits() == b.to_bits()), "{simplex:?} p = {p}");
+            // Each column from unit4 is apply4's product with the unit vector.
+            let mut column = vec![f64::NAN; nd * CELL_LANES];
+            for dof in 0..nd {
+                let mut unit = vec![0.0; nd * CELL_LANES];
+                unit[dof * CELL_LANES..][..CELL_LANES].fill(1.0);
+                k.apply4::<D>(&f4, &unit, &mut y4);
+                k.unit4::<D>(&f4, dof, &mut column);
+                assert!(column == y4, "{simplex:?} p = {p}: column {dof}");
+                unit4_portable::<D>(&k, &f4, dof, &mut portable);
+                assert!(portable == y4, "{simplex:?} p = {p}: portable column {dof}");
+            }
             // Rigid translations, in every lane.
             let shift: Vec<f64> = (0..nd * CELL_LANES).map(|i| if (i / CELL_LANES).is_multiple_of(D) { 1.0 } else { 0.0 }).collect();
             k.apply4::<D>(&f4, &shift, &mut y4);
@@ -543,7 +631,7 @@ mod tests {
             for x in flipped.chunks_exact_mut(D) {
                 x[0] = -x[0];
             }
-            assert!(k.point_factors::<D>(&flipped, &mut vec![0.0; nf], &mut Vec::new()).is_err());
+            assert!(k.point_factors::<D>(&flipped, &mut f4, 0, &mut Vec::new()).is_err());
         }
         for p in [1, 2, 4] {
             check::<2>(Simplex::Tri, p);

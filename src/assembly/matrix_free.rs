@@ -118,45 +118,35 @@ impl System {
         let keep = interior.as_mut().map_or(&mut none, |r| &mut r.keep);
         keep.clear();
         keep.resize(stride * mesh.n_cells(), 0.0);
-        factors[..per_cell * mesh.n_cells()].par_chunks_mut(per_cell).enumerate().try_for_each_init(
-            || (vec![0.0; nd], Vec::new()),
-            |(xe, jac), (k, f)| {
-                let c = order[k];
-                for (a, &n) in mesh.cell(c).iter().enumerate() {
-                    xe[a * D..(a + 1) * D].copy_from_slice(&coords[n * D..(n + 1) * D]);
-                }
-                kernel.point_factors::<D>(xe, f, jac).map_err(|det_j| {
-                    Error::invalid_element(Some(c), format!("cell {c} has a non-positive Jacobian ({det_j:.3e})"))
-                })
-            },
-        )?;
-        // Cell by cell, then lane by lane within each group.
-        factors.par_chunks_mut(per_cell * CELL_LANES).for_each_init(Vec::new, |cells, group| {
-            cells.clear();
-            cells.extend_from_slice(group);
-            for (l, cell) in cells.chunks_exact(per_cell).enumerate() {
-                for (k, &v) in cell.iter().enumerate() {
-                    group[k * CELL_LANES + l] = v;
-                }
-            }
-        });
-        if ni > 0 {
-            let dofs = (&ii[..], &bb[..]);
-            factors
-                .par_chunks(per_cell * CELL_LANES)
-                .zip(kii.par_chunks_mut(kii_stride * CELL_LANES))
-                .zip(keep.par_chunks_mut(stride * CELL_LANES))
-                .enumerate()
-                .try_for_each_init(
-                    || (vec![0.0; nd * CELL_LANES], vec![0.0; nd * CELL_LANES], vec![0.0; ni * ni]),
-                    |scratch, (g, ((f4, kii), keep))| {
-                        interior_columns::<D>(kernel, f4, dofs, kii, keep, scratch).map_err(|l| {
-                            let c = order[g * CELL_LANES + l];
-                            Error::invalid_element(Some(c), format!("cell {c}: the stiffness of its interior nodes is singular"))
-                        })
-                    },
-                )?;
-        }
+        // Group by group: the factors of each cell in its lane, then the
+        // interior columns while the group's factors are in cache.
+        let dofs = (&ii[..], &bb[..]);
+        factors
+            .par_chunks_mut(per_cell * CELL_LANES)
+            .zip(kii.par_chunks_mut(kii_stride * CELL_LANES))
+            .zip(keep.par_chunks_mut(stride * CELL_LANES))
+            .enumerate()
+            .try_for_each_init(
+                || (vec![0.0; nd], Vec::new(), (vec![0.0; nd * CELL_LANES], vec![0.0; ni * ni])),
+                |(xe, jac, scratch), (g, ((f4, kii), keep))| {
+                    let cells = &order[g * CELL_LANES..][..kii.len() / kii_stride];
+                    for (l, &c) in cells.iter().enumerate() {
+                        for (a, &n) in mesh.cell(c).iter().enumerate() {
+                            xe[a * D..(a + 1) * D].copy_from_slice(&coords[n * D..(n + 1) * D]);
+                        }
+                        kernel.point_factors::<D>(xe, f4, l, jac).map_err(|det_j| {
+                            Error::invalid_element(Some(c), format!("cell {c} has a non-positive Jacobian ({det_j:.3e})"))
+                        })?;
+                    }
+                    if ni == 0 {
+                        return Ok(());
+                    }
+                    interior_columns::<D>(kernel, f4, dofs, kii, keep, scratch).map_err(|l| {
+                        let c = cells[l];
+                        Error::invalid_element(Some(c), format!("cell {c}: the stiffness of its interior nodes is singular"))
+                    })
+                },
+            )?;
         if let Some(r) = interior.as_mut() {
             r.order = Some(order.clone());
         }
@@ -342,7 +332,7 @@ impl Product<'_> {
                 // z = −W v_B; y_B += K_BI z = Wᵀ (K_II z).
                 let w = &self.w[at * ni * (nb + 1)..][..ni * nb];
                 for (z, wi) in s.z.iter_mut().zip(w.chunks_exact(nb)) {
-                    *z = -wi.iter().zip(&s.vb).map(|(w, v)| w * v).sum::<f64>();
+                    *z = -crate::linalg::dot4(wi, &s.vb);
                 }
                 let kii = &self.op.kii[at * ni * ni..][..ni * ni];
                 for (ki, wi) in kii.chunks_exact(ni).zip(w.chunks_exact(nb)) {
@@ -374,16 +364,14 @@ fn interior_columns<const D: usize>(
     (ii, bb): (&[usize], &[usize]),
     kii: &mut [f64],
     keep: &mut [f64],
-    (ue4, ye4, lu): &mut (Vec<f64>, Vec<f64>, Vec<f64>),
+    (ye4, lu): &mut (Vec<f64>, Vec<f64>),
 ) -> std::result::Result<(), usize> {
     const L: usize = CELL_LANES;
     let (ni, nb) = (ii.len(), bb.len());
     let (kii_stride, stride) = (ni * ni, ni * (nb + 1));
     let lanes = kii.len() / kii_stride;
     for (j, &dj) in ii.iter().enumerate() {
-        ue4.fill(0.0);
-        ue4[dj * L..][..L].fill(1.0);
-        kernel.apply4::<D>(factors4, ue4, ye4);
+        kernel.unit4::<D>(factors4, dj, ye4);
         for l in 0..lanes {
             for (i, &di) in ii.iter().enumerate() {
                 kii[l * kii_stride + i * ni + j] = ye4[di * L + l];

@@ -143,13 +143,16 @@ impl DofMap {
     /// free dofs) at the free dofs, and `prescribed` (one value per dof) at
     /// the prescribed ones, which are left alone when it is None.
     pub fn add_to(&self, x: &mut [f64], u: &[f64], prescribed: Option<&[f64]>) {
-        for (dof, x) in x.iter_mut().enumerate() {
-            match (self.free_index(dof), prescribed) {
-                (Some(f), _) => *x += u[f],
-                (None, Some(p)) => *x += p[dof],
-                (None, None) => {}
+        const DOFS: usize = 8192;
+        x.par_chunks_mut(DOFS).enumerate().for_each(|(k, xc)| {
+            for (dof, x) in (k * DOFS..).zip(xc) {
+                match (self.free_index(dof), prescribed) {
+                    (Some(f), _) => *x += u[f],
+                    (None, Some(p)) => *x += p[dof],
+                    (None, None) => {}
+                }
             }
-        }
+        });
     }
 
     /// Whether the cell-interior dofs are condensed out of the system.
