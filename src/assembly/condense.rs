@@ -252,7 +252,7 @@ impl InteriorRecovery {
                 }
                 let (w, g) = keep.split_at(ni * nb);
                 for ((v, g), w) in values.iter_mut().zip(g).zip(w.chunks_exact(nb)) {
-                    *v = g - crate::linalg::dot4(w, ub);
+                    *v = g - w.iter().zip(ub.iter()).map(|(a, b)| a * b).sum::<f64>();
                 }
             },
         );
