@@ -165,48 +165,59 @@ impl DofMap {
     /// Built in O(cells · nodes_per_cell²). Panics above 2^32 − 1 unknowns
     /// (32-bit row indices; such a mesh would need over 100 GB before its matrix).
     pub fn pattern(&self, mesh: &HighOrderMesh) -> SymmetricCsc {
+        self.pattern_with_nodes(mesh).0
+    }
+
+    /// [`DofMap::pattern`] and its nodal-block layout, as the iterative
+    /// solver would read it back from the pattern: per system
+    /// node J (the `dim` rows from J·dim), the system nodes I ≥ J that share
+    /// a cell with it, ascending, J first. A node's dofs are all free or
+    /// all prescribed, and numbered one after another, so the pattern is
+    /// always in that layout. Reading it back took 18–24 ms of a one-increment
+    /// torus cavity run at p = 4.
+    pub fn pattern_with_nodes(&self, mesh: &HighOrderMesh) -> (SymmetricCsc, Vec<Vec<u32>>) {
         assert!(self.n_system < u32::MAX as usize, "{} unknowns: more than 32-bit row indices hold", self.n_system);
         let n_nodes = mesh.n_nodes();
         let (start, node_cells) = node_cells(mesh);
         let dim = self.dim;
-        // Per free node: the first rows of its neighbours from its own on,
-        // ascending (a node's rows are consecutive; sorted as plain integers,
-        // not by a looked-up key: 35 ms against 54 ms on the sphere cavity at
-        // p = 4). The nodes of one edge, face or cell interior lie in the
-        // same cells and are numbered one after another: their neighbours
-        // are gathered once per run of such nodes (25,527 runs of 63,491
-        // nodes on the torus cavity at p = 4: 20-22 ms against 37-58 ms).
+        let system_node = |n: usize| self.system_row(n * dim).map(|r| (r / dim) as u32);
+        // Per free node: its system node index and those of its neighbours
+        // from its own on, ascending (sorted as plain integers, not by a
+        // looked-up key: 35 ms against 54 ms on the sphere cavity at p = 4).
+        // The nodes of one edge, face or cell interior lie in the same cells
+        // and are numbered one after another: their neighbours are gathered
+        // once per run of such nodes (25,527 runs of 63,491 nodes on the
+        // torus cavity at p = 4: 20-22 ms against 37-58 ms).
         let cells_of = |n: usize| &node_cells[start[n]..start[n + 1]];
         let mut runs: Vec<usize> = (0..n_nodes).filter(|&n| n == 0 || cells_of(n) != cells_of(n - 1)).collect();
         runs.push(n_nodes);
-        let columns: Vec<Vec<usize>> = runs
+        let columns: Vec<Vec<u32>> = runs
             .par_windows(2)
             .flat_map_iter(|run| {
                 let nodes = run[0]..run[1];
-                let rows = nodes.clone().filter_map(|n| self.system_row(n * dim));
-                let lowest = rows.min().unwrap_or(usize::MAX);
-                let mut nb: Vec<usize> = cells_of(run[0])
+                let lowest = nodes.clone().filter_map(system_node).min().unwrap_or(u32::MAX);
+                let mut nb: Vec<u32> = cells_of(run[0])
                     .iter()
-                    .flat_map(|&c| mesh.cell(c).iter().filter_map(|&m| self.system_row(m * dim)))
+                    .flat_map(|&c| mesh.cell(c).iter().filter_map(|&m| system_node(m)))
                     .filter(|&r| r >= lowest)
                     .collect();
                 nb.sort_unstable();
                 nb.dedup();
-                nodes.map(move |n| match self.system_row(n * dim) {
+                nodes.map(move |n| match system_node(n) {
                     Some(own) => nb[nb.partition_point(|&r| r < own)..].to_vec(),
                     None => Vec::new(),
                 })
             })
             .collect();
-        // Column (n, c) holds rows (n, c..dim), then (m, 0..dim) of each
-        // later neighbour m. Allocated to its length (grown by pushing, its
+        // Per system node, in order (each list starts with its own).
+        let mut nodes: Vec<Vec<u32>> = columns.into_iter().filter(|nb| !nb.is_empty()).collect();
+        nodes.par_sort_unstable_by_key(|nb| nb[0]);
+        // Column (J, c) holds rows (J, c..dim), then (I, 0..dim) of each
+        // later neighbour I. Allocated to its length (grown by pushing, its
         // capacity was 1.5 times that on the bench's 3D p = 4 case: 200
         // bytes per unknown held through the whole solve) and filled node
         // by node in parallel (serially, 2 ms of a 31,000-unknown p = 2
         // system, on the critical path).
-        // Columns in the order of their rows (each list starts with its own).
-        let mut nodes: Vec<&[usize]> = columns.iter().filter(|nb| !nb.is_empty()).map(Vec::as_slice).collect();
-        nodes.sort_unstable_by_key(|nb| nb[0]);
         let mut col_ptr = Vec::with_capacity(self.n_system + 1);
         let mut node_ptr = Vec::with_capacity(nodes.len() + 1);
         col_ptr.push(0);
@@ -218,19 +229,20 @@ impl DofMap {
             node_ptr.push(col_ptr[col_ptr.len() - 1]);
         }
         let mut row_idx = vec![0u32; col_ptr[col_ptr.len() - 1]];
-        crate::sparse::split_by(&mut row_idx, &node_ptr, 1).into_par_iter().zip(&nodes).for_each(|(out, &nb)| {
+        let dim32 = dim as u32;
+        crate::sparse::split_by(&mut row_idx, &node_ptr, 1).into_par_iter().zip(&nodes).for_each(|(out, nb)| {
             let mut k = 0;
-            for c in 0..dim {
-                for &first in nb {
-                    let d0 = if first == nb[0] { c } else { 0 };
-                    for d in d0..dim {
-                        out[k] = (first + d) as u32;
+            for c in 0..dim32 {
+                for (t, &node) in nb.iter().enumerate() {
+                    let d0 = if t == 0 { c } else { 0 };
+                    for d in d0..dim32 {
+                        out[k] = node * dim32 + d;
                         k += 1;
                     }
                 }
             }
         });
-        SymmetricCsc { n: self.n_system, col_ptr, row_idx }
+        (SymmetricCsc { n: self.n_system, col_ptr, row_idx }, nodes)
     }
 }
 
@@ -646,9 +658,15 @@ pub struct System {
 impl System {
     /// The pattern and plan of `dofs` on `mesh`, nothing assembled yet.
     pub fn new(mesh: &HighOrderMesh, dofs: DofMap) -> System {
-        let pattern = dofs.pattern(mesh);
+        Self::with_nodes(mesh, dofs).0
+    }
+
+    /// [`System::new`], and the pattern's nodal-block layout
+    /// ([`DofMap::pattern_with_nodes`]) for the iterative solver.
+    pub fn with_nodes(mesh: &HighOrderMesh, dofs: DofMap) -> (System, Vec<Vec<u32>>) {
+        let (pattern, nodes) = dofs.pattern_with_nodes(mesh);
         let plan = AssemblyPlan::new(mesh, &dofs, &pattern);
-        System {
+        let system = System {
             dofs,
             pattern,
             plan,
@@ -659,7 +677,8 @@ impl System {
             full_rhs: Vec::new(),
             interior_sq: Vec::new(),
             cell_layout: None,
-        }
+        };
+        (system, nodes)
     }
 
     /// The dof map, the pattern and the assembled values.
@@ -928,7 +947,8 @@ mod tests {
     #[test]
     fn the_pattern_couples_the_free_dofs_of_nodes_that_share_a_cell() {
         // Against a plain construction: every pair of free dofs (r ≥ c) of
-        // nodes in one cell, per column in ascending rows.
+        // nodes in one cell, per column in ascending rows; and its nodal
+        // layout, the nodes of the rows of each node's first column.
         let mesh = sphere_at_order_2(2);
         let dofs = DofMap::new(&mesh);
         let mut columns = vec![std::collections::BTreeSet::new(); dofs.n_system];
@@ -945,13 +965,19 @@ mod tests {
                 }
             }
         }
-        let pattern = dofs.pattern(&mesh);
+        let (pattern, nodes) = dofs.pattern_with_nodes(&mesh);
         assert_eq!(pattern.n, dofs.n_system);
         for (c, rows) in columns.iter().enumerate() {
             let got = &pattern.row_idx[pattern.col_ptr[c]..pattern.col_ptr[c + 1]];
             assert_eq!(got, rows.iter().copied().collect::<Vec<u32>>().as_slice(), "column {c}");
         }
         assert_eq!(pattern.col_ptr.len(), dofs.n_system + 1);
+        assert_eq!(nodes.len() * 3, dofs.n_system);
+        for (j, got) in nodes.iter().enumerate() {
+            let mut want: Vec<u32> = columns[j * 3].iter().map(|r| r / 3).collect();
+            want.dedup();
+            assert_eq!(got, &want, "node {j}");
+        }
     }
 
     #[test]

@@ -173,7 +173,9 @@ pub struct ElasticStop {
     pub restarted: bool,
 }
 
-/// The solver `choice` asks for, set up for this mesh and pattern. `Auto`:
+/// The solver `choice` asks for, set up for this mesh and pattern, whose
+/// nodal-block `layout` ([`System::with_nodes`]) the iterative solver takes
+/// as it is. `Auto`:
 /// direct in 2D and for small 3D systems ([`crate::solver::auto_direct_max_dofs`]),
 /// iterative above. The direct solver orders with `ordering`. In 3D, with
 /// the `material` of a linear elastic kernel, the multigrid's first coarse
@@ -189,6 +191,7 @@ fn make_solver(
     ordering: DirectOrdering,
     mesh: &HighOrderMesh,
     system: &System,
+    layout: Vec<Vec<u32>>,
     material: Option<LinearElastic>,
 ) -> Result<Box<dyn LinearSolver>> {
     let pattern = system.pattern();
@@ -205,7 +208,8 @@ fn make_solver(
     // smoother, and line blocks through stretched layers.
     let lines = cell_lines(mesh);
     let levels = multigrid_levels(mesh, system.dofs(), &lines, material.filter(|_| mesh.dim() == 3));
-    let solver = IterativeSolver::try_new(pattern, mesh.dim(), levels.levels, IterativeParams::default())?;
+    let params = IterativeParams::default();
+    let solver = IterativeSolver::try_new_with_layout(pattern, mesh.dim(), levels.levels, params, Some(layout))?;
     Ok(Box::new(solver.with_lines(levels.groups).with_first_coarse_values(levels.first_values)))
 }
 
@@ -670,9 +674,9 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
         timings: &mut Timings,
     ) -> Result<IncrementContext<'a, K>> {
         let t = Instant::now();
-        let system = System::new(mesh, dofs);
+        let (system, layout) = System::with_nodes(mesh, dofs);
         let material = kernel.linear_material();
-        let solver = make_solver(stepping.solver.clone(), stepping.direct_ordering, mesh, &system, material)?;
+        let solver = make_solver(stepping.solver.clone(), stepping.direct_ordering, mesh, &system, layout, material)?;
         let check = stepping.adaptive.then(|| {
             quality::ValidityCheck::new(LagrangeBasis::new(&NodeSet::new(mesh.simplex, mesh.order, mesh.spacing)))
         });

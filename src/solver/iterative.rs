@@ -263,6 +263,21 @@ impl IterativeSolver {
         levels: Vec<(SparseRows, SymmetricCsc)>,
         params: IterativeParams,
     ) -> Result<IterativeSolver> {
+        Self::try_new_with_layout(pattern, block, levels, params, None)
+    }
+
+    /// [`Self::try_new`] given the nodal-block layout of `pattern` when the
+    /// caller built the pattern in that layout and kept it (per node J, the
+    /// nodes I ≥ J coupled to it, ascending, J first: what the solver would
+    /// otherwise read back from the pattern and check). A layout of the
+    /// wrong number of nodes is ignored.
+    pub fn try_new_with_layout(
+        pattern: &SymmetricCsc,
+        block: usize,
+        levels: Vec<(SparseRows, SymmetricCsc)>,
+        params: IterativeParams,
+        layout: Option<Vec<Vec<u32>>>,
+    ) -> Result<IterativeSolver> {
         if let Some((p, _)) = levels.first() {
             if p.n_rows != pattern.n {
                 return Err(Error::solver(
@@ -274,7 +289,13 @@ impl IterativeSolver {
         let coarse = if levels.is_empty() { None } else { Some(Hierarchy::try_new(levels, block, params.smoother)?) };
         // A pattern not in nodal blocks (an external caller's) keeps double
         // precision. The layout is read once for both operators.
-        let upper = super::bsr::nodal_blocks(pattern, block).ok();
+        let upper = match layout.filter(|nodes| block > 1 && nodes.len() * block == pattern.n) {
+            Some(nodes) => {
+                debug_assert_eq!(Some(&nodes), super::bsr::nodal_blocks(pattern, block).ok().as_ref());
+                Some(nodes)
+            }
+            None => super::bsr::nodal_blocks(pattern, block).ok(),
+        };
         let fine32 = match (&upper, params.single_precision_smoother) {
             (Some(upper), true) => BlockSym32::from_nodal_blocks(upper, block).ok(),
             _ => None,
