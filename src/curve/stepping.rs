@@ -173,9 +173,8 @@ pub struct ElasticStop {
     pub restarted: bool,
 }
 
-/// The solver `choice` asks for, set up for this mesh and pattern, whose
-/// nodal-block `layout` ([`System::with_nodes`]) the iterative solver takes
-/// as it is. `Auto`:
+/// The system of `dofs` (pattern and assembly plan) and the solver `choice`
+/// asks for, set up for it. `Auto`:
 /// direct in 2D and for small 3D systems ([`crate::solver::auto_direct_max_dofs`]),
 /// iterative above. The direct solver orders with `ordering`. In 3D, with
 /// the `material` of a linear elastic kernel, the multigrid's first coarse
@@ -190,27 +189,35 @@ fn make_solver(
     choice: SolverChoice,
     ordering: DirectOrdering,
     mesh: &HighOrderMesh,
-    system: &System,
-    layout: Vec<Vec<u32>>,
+    dofs: DofMap,
     material: Option<LinearElastic>,
-) -> Result<Box<dyn LinearSolver>> {
-    let pattern = system.pattern();
-    let iterative = match choice {
-        SolverChoice::External(host) => return Ok(Box::new(ExternalAdapter::new(host, pattern))),
-        SolverChoice::Direct => false,
+) -> Result<(System, Box<dyn LinearSolver>)> {
+    let iterative = match &choice {
+        SolverChoice::External(_) | SolverChoice::Direct => false,
         SolverChoice::Iterative => true,
-        SolverChoice::Auto => mesh.dim() == 3 && pattern.n > crate::solver::auto_direct_max_dofs(mesh.order),
+        SolverChoice::Auto => mesh.dim() == 3 && dofs.n_system > crate::solver::auto_direct_max_dofs(mesh.order),
     };
     if !iterative {
-        return Ok(Box::new(DirectSolver::try_new_with(pattern, ordering)?));
+        let system = System::new(mesh, dofs);
+        let solver: Box<dyn LinearSolver> = match choice {
+            SolverChoice::External(host) => Box::new(ExternalAdapter::new(host, system.pattern())),
+            _ => Box::new(DirectSolver::try_new_with(system.pattern(), ordering)?),
+        };
+        return Ok((system, solver));
     }
-    // The free dofs of a node are consecutive: nodal blocks for the
-    // smoother, and line blocks through stretched layers.
-    let lines = cell_lines(mesh);
-    let levels = multigrid_levels(mesh, system.dofs(), &lines, material.filter(|_| mesh.dim() == 3));
+    // The multigrid's levels need only the dof map: they are made beside
+    // the system's pattern and plan, each thread taking up the other's
+    // serial stretches. The free dofs of a node are consecutive: nodal
+    // blocks for the smoother, and line blocks through stretched layers.
+    let ((system, layout), levels) = rayon::join(
+        || System::with_nodes(mesh, dofs.clone()),
+        || multigrid_levels(mesh, &dofs, &cell_lines(mesh), material.filter(|_| mesh.dim() == 3)),
+    );
     let params = IterativeParams::default();
-    let solver = IterativeSolver::try_new_with_layout(pattern, mesh.dim(), levels.levels, params, Some(layout))?;
-    Ok(Box::new(solver.with_lines(levels.groups).with_first_coarse_values(levels.first_values)))
+    let solver =
+        IterativeSolver::try_new_with_layout(system.pattern(), mesh.dim(), levels.levels, params, Some(layout))?;
+    let solver = solver.with_lines(levels.groups).with_first_coarse_values(levels.first_values);
+    Ok((system, Box::new(solver)))
 }
 
 /// Move `mesh` by the prescribed boundary displacement `ubar` (one value per
@@ -674,9 +681,8 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
         timings: &mut Timings,
     ) -> Result<IncrementContext<'a, K>> {
         let t = Instant::now();
-        let (system, layout) = System::with_nodes(mesh, dofs);
         let material = kernel.linear_material();
-        let solver = make_solver(stepping.solver.clone(), stepping.direct_ordering, mesh, &system, layout, material)?;
+        let (system, solver) = make_solver(stepping.solver.clone(), stepping.direct_ordering, mesh, dofs, material)?;
         let check = stepping.adaptive.then(|| {
             quality::ValidityCheck::new(LagrangeBasis::new(&NodeSet::new(mesh.simplex, mesh.order, mesh.spacing)))
         });
