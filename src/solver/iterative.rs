@@ -489,16 +489,21 @@ impl IterativeSolver {
             }
             _ => &exact,
         };
-        let smoother = match kept {
-            Some(kept) => kept,
-            None => {
-                let jacobi = diagonal_blocks(pattern, values, self.block, lines)?;
-                mode.smoother(fine, exact, jacobi, self.params.smoother, start)?
-            }
-        };
-        if let Some(c) = &mut self.coarse {
-            mode.update_coarse(c, exact, self.params.reuse_coarse)?;
-        }
+        // The fine smoother and the coarse levels side by side: each has
+        // serial stretches (the Lanczos recurrence, the coarsest factor).
+        let (block, params) = (self.block, self.params);
+        let (smoother, coarse) = rayon::join(
+            || match kept {
+                Some(kept) => Ok(kept),
+                None => {
+                    let jacobi = diagonal_blocks(pattern, values, block, lines)?;
+                    mode.smoother(fine, exact, jacobi, params.smoother, start)
+                }
+            },
+            || self.coarse.as_mut().map_or(Ok(()), |c| mode.update_coarse(c, exact, params.reuse_coarse)),
+        );
+        let smoother = smoother?;
+        coarse?;
         self.setup_seconds += setup.elapsed().as_secs_f64();
         Ok(smoother)
     }
