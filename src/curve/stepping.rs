@@ -451,12 +451,11 @@ struct Walk {
     predictor: Predictor,
     /// The residual ‖b − A x‖₂ that the accepted increments' linear steps
     /// were allowed and did not use, passed on to the next one. The
-    /// solution of the whole load is the sum of the increments': to first
-    /// order its error is the sum of theirs, each A⁻¹ times its residual,
-    /// and the sum of the residuals stays within the tolerance times the
-    /// sum of the right-hand sides, as if each met the tolerance alone,
-    /// while a step that ends well below its share leaves more to the next
-    /// ([`LinearSolver::carry_tolerance`]).
+    /// solution of the whole load is the sum of the increments': its error
+    /// is bounded by the sum of their residuals, which stays within the
+    /// tolerance times the sum of their right-hand sides, as if each met the
+    /// tolerance alone, and a step that ends well below its share leaves
+    /// more to the next ([`LinearSolver::carry_tolerance`]).
     carry: f64,
     n_free: usize,
     /// The geometry at load 0, for a restart.
