@@ -73,42 +73,6 @@ fn iterative_and_direct_solvers_curve_the_sphere_cavity_alike_at_p_2_and_3() {
     }
 }
 
-/// The increments of one load share the tolerance: each linear step may
-/// leave the residual the earlier ones did not use, so a step that ended
-/// well below its share lets the next stop sooner. The sum of their
-/// residuals, which bounds the error of the summed solution, stays within
-/// the tolerance times the sum of their right-hand sides; and the mesh is
-/// the direct solver's.
-#[test]
-fn the_increments_share_the_tolerance_and_curve_as_the_direct_solver_does() {
-    let case = cases::sphere_in_box_3d(3, 3);
-    let mut mesh = case.mesh.clone();
-    mesh.retain_tags(|d, t| case.projector.get(d, t).is_some());
-    let opts = |solver| {
-        let mut o = CurveOptions { order: 3, increments: 10, solver, ..Default::default() };
-        o.optimize.enabled = false;
-        o
-    };
-    let d = curve(&mesh, &case.projector, &opts(SolverChoice::Direct), &mut |_| true).unwrap();
-    let i = curve(&mesh, &case.projector, &opts(SolverChoice::Iterative), &mut |_| true).unwrap();
-    let s = &i.report.solves;
-    let r: Vec<_> = s.residual.iter().map(|r| r.expect("PCG measures its residual")).collect();
-    assert_eq!(r.len(), 10);
-    assert!(s.by_products > 0, "later increments from the cells' products: {s:?}");
-    let rtol = IterativeParams::default().pcg.rtol;
-    let (sum, allowed) = r.iter().fold((0.0, 0.0), |(n, b), r| (n + r.norm, b + rtol * r.rhs));
-    println!("residuals / tolerance: {:?}", r.iter().map(|r| r.norm / (rtol * r.rhs)).collect::<Vec<_>>());
-    assert!(sum <= allowed * (1.0 + 1e-12), "Σ‖r‖ = {sum:e} > rtol Σ‖b‖ = {allowed:e}");
-    // Each was allowed its own share plus what the accepted ones before it left.
-    let mut carried = 0.0;
-    for r in &r {
-        assert!((r.allowed - (rtol * r.rhs + carried)).abs() <= 1e-12 * r.allowed, "{r:?}, carried {carried:e}");
-        carried = r.unused();
-    }
-    assert!(r.iter().any(|r| r.norm > rtol * r.rhs), "no increment used what an earlier one left: {r:?}");
-    assert_same_mesh(&d, &i, "sphere p=3, ten increments");
-}
-
 /// The default choice solves a 3D system directly up to a size that grows
 /// with the order: a mesh of 1944 cells goes to the iterative solver at
 /// p = 2 and 3, one of 288 cells to the direct solver at p = 4 and 5,

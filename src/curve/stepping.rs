@@ -389,7 +389,6 @@ fn step_through<K: ElementKernel>(
         u: vec![0.0; n_free],
         du: vec![0.0; n_free],
         saved: mesh.coords.clone(),
-        carry: 0.0,
     };
     // The sampled check after each increment, the certified one after the
     // last, after any step back, and after every increment once an inversion
@@ -403,7 +402,6 @@ fn step_through<K: ElementKernel>(
         }
         bufs.saved.copy_from_slice(&mesh.coords);
         walk.predictor.predict_into(inc.h, &mut bufs.u);
-        bufs.carry = walk.carry;
         let certified = walk.certify_all || walk.at + inc.len == walk.total || !out.step_backs.is_empty();
         let result = ctx.attempt(mesh, &mut bufs, certified, timings, &mut out);
         if inc.from == 0.0 && out.first_rate.is_none() && bufs.u.iter().all(|x| x.is_finite()) {
@@ -449,14 +447,6 @@ struct Walk {
     /// between the sample points).
     certify_all: bool,
     predictor: Predictor,
-    /// The residual ‖b − A x‖₂ that the accepted increments' linear steps
-    /// were allowed and did not use, passed on to the next one. The
-    /// solution of the whole load is the sum of the increments': its error
-    /// is bounded by the sum of their residuals, which stays within the
-    /// tolerance times the sum of their right-hand sides, as if each met the
-    /// tolerance alone, and a step that ends well below its share leaves
-    /// more to the next ([`LinearSolver::carry_tolerance`]).
-    carry: f64,
     n_free: usize,
     /// The geometry at load 0, for a restart.
     start: Vec<f64>,
@@ -480,7 +470,6 @@ impl Walk {
             last_rejected: None,
             certify_all: false,
             predictor: Predictor::new(n_free),
-            carry: 0.0,
             n_free,
             start: mesh.coords.clone(),
         }
@@ -513,7 +502,7 @@ impl Walk {
             // inverted cell c between them: start again from the straight
             // mesh with the certified check after every step.
             Ok(Some(c)) if certified && !self.certify_all => self.restart(inc, Some(c), mesh, out),
-            Ok(_) => self.accept(bufs, inc, out),
+            Ok(_) => self.accept(&bufs.u, inc, out),
             Err(Failure::Fatal(e)) => return Err(e),
             Err(Failure::AtStart { cell, detail }) if self.finish && self.certify_all => stop(
                 out,
@@ -543,10 +532,9 @@ impl Walk {
         Ok(())
     }
 
-    /// Accept `inc`, whose solution on the free dofs is `bufs.u`.
-    fn accept(&mut self, bufs: &Buffers, inc: &Increment, out: &mut IncrementsReport) {
-        self.predictor.accept(&bufs.u, inc.h);
-        self.carry = bufs.carry;
+    /// Accept `inc`, whose solution on the free dofs is `u`.
+    fn accept(&mut self, u: &[f64], inc: &Increment, out: &mut IncrementsReport) {
+        self.predictor.accept(u, inc.h);
         self.at += inc.len;
         out.load_fractions.push(self.at as f64 / self.total as f64);
         if self.at.is_multiple_of(self.nominal) {
@@ -560,7 +548,7 @@ impl Walk {
         out.step_backs.push(StepBack { load: inc.from, step: inc.h, reason: StepBackReason::Restarted, cell });
         mesh.coords.copy_from_slice(&self.start);
         out.load_fractions.clear();
-        (self.at, self.depth, self.certify_all, self.last_rejected, self.carry) = (0, 0, true, None, 0.0);
+        (self.at, self.depth, self.certify_all, self.last_rejected) = (0, 0, true, None);
         self.predictor = Predictor::new(self.n_free);
     }
 
@@ -650,9 +638,6 @@ struct Buffers {
     du: Vec<f64>,
     /// The geometry the increment starts from.
     saved: Vec<f64>,
-    /// On entry to an attempt, the residual the accepted increments' linear
-    /// steps left unused ([`Walk::carry`]); after it, what this one's left.
-    carry: f64,
 }
 
 /// What an attempt to solve an increment from its products spent before
@@ -734,26 +719,8 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
     }
 
     /// The linear solve of the increment on the geometry at its start, added
-    /// to `mesh`, allowed the residual `bufs.carry` above the tolerance, and
-    /// leaving there what it did not use; returns the norm
-    /// of its right-hand side, ‖R₀‖.
+    /// to `mesh`; returns the norm of its right-hand side, ‖R₀‖.
     fn linear_step(
-        &mut self,
-        mesh: &mut HighOrderMesh,
-        bufs: &mut Buffers,
-        timings: &mut Timings,
-        out: &mut IncrementsReport,
-    ) -> std::result::Result<f64, Failure> {
-        self.solver.carry_tolerance(bufs.carry);
-        let solved = self.linear_solve(mesh, bufs, timings, out);
-        self.solver.carry_tolerance(0.0);
-        let r0 = solved?;
-        bufs.carry = out.solves.residual.last().copied().flatten().map_or(0.0, |r| r.unused());
-        Ok(r0)
-    }
-
-    /// [`Self::linear_step`]'s solve, from the cells' products or assembled.
-    fn linear_solve(
         &mut self,
         mesh: &mut HighOrderMesh,
         bufs: &mut Buffers,

@@ -33,7 +33,7 @@ use crate::mesh::{HighOrderMesh, LinearMesh, NodeConstraint, RepairSummary};
 use crate::optimize::OptimizeReport;
 use crate::quality::{ElementQuality, MeshQuality};
 use crate::session::{ProgressFn, Session};
-use crate::solver::{FallbackReason, Residual, SolveLog, SolvedBy};
+use crate::solver::{FallbackReason, SolveLog, SolvedBy};
 use crate::{Error, Result, SolverFailure};
 
 /// The communicator behind the host's Fortran handle `comm`, duplicated so
@@ -731,9 +731,6 @@ fn encode_report(w: &mut Wire, r: &CurveReport) {
     w.list(&s.iterations.iter().map(|&n| n as u64).collect::<Vec<_>>());
     w.list(&s.solved_by.iter().map(|b| code(&SOLVED_BY, b) as u64).collect::<Vec<_>>());
     w.list(&s.fallback.iter().map(|f| f.map_or(0, |f| 1 + code(&FALLBACKS, &f) as u64)).collect::<Vec<_>>());
-    // Each solve's residual as three floats' bits, NaN when not measured.
-    let parts = |r: &Option<Residual>| r.map_or([f64::NAN; 3], |r| [r.norm, r.rhs, r.allowed]);
-    w.list(&s.residual.iter().flat_map(parts).map(f64::to_bits).collect::<Vec<_>>());
     w.int(s.by_products);
     w.int(s.assembled_after_products);
     w.int(r.elastic_stop.is_some() as usize);
@@ -838,9 +835,6 @@ fn decode_solves(r: &mut Reader) -> SolveLog {
         iterations: r.list().into_iter().map(|n| n as usize).collect(),
         solved_by: r.list().into_iter().map(|b| SOLVED_BY[(b as usize).min(4)]).collect(),
         fallback: r.list().into_iter().map(|f| (f as usize).checked_sub(1).map(|k| FALLBACKS[k.min(5)])).collect(),
-        residual: (r.list().into_iter().map(f64::from_bits).collect::<Vec<_>>().chunks(3))
-            .map(|p| (!p[0].is_nan()).then(|| Residual { norm: p[0], rhs: p[1], allowed: p[2] }))
-            .collect(),
         by_products: r.int(),
         assembled_after_products: r.int(),
     }

@@ -76,7 +76,7 @@ pub fn curve_report_json(r: &CurveReport, spacing: NodeSpacing, output: Option<&
          \"increments_taken\": {},\n  \"load_fractions\": {:?},\n  \"step_backs\": [{}],\n  \"spacing\": \"{}\",\n  \"nodes\": {},\n  \"dofs\": {},\n  \"system_dofs\": {},\n  \
          \"cells\": {},\n  \"removed_caps\": {},\n  \"caps_kept_after\": {},\n  \"caps_kept_failed\": {},\n  \"repair\": {},\n  \"projected_nodes\": {},\n  \"max_projection_distance\": {},\n  \"edges_along_curves\": {},\n{},\n  \
          \"newton_history\": {:?},\n  \"linear_solver\": \"{}\",\n  \"solver_iterations\": {:?},\n  \
-         \"solver_per_solve\": [{}],\n  \"solves_by_products\": {},\n  \"solves_assembled_after_products\": {},\n  \"fallbacks\": {},\n  \"fallback_per_solve\": [{}],\n  \"solver_relative_residual\": [{}],\n  \
+         \"solver_per_solve\": [{}],\n  \"solves_by_products\": {},\n  \"solves_assembled_after_products\": {},\n  \"fallbacks\": {},\n  \"fallback_per_solve\": [{}],\n  \
          \"seconds\": {{\"total\": {}, \"elevate\": {}, \"project\": {}, \"assembly\": {}, \"setup\": {}, \"solve\": {}, \"quality\": {}, \"check\": {}, \"optimize\": {}}},\n  \
          \"elastic_stop\": {},\n  \"optimization\": {},\n  \"output\": {}\n}}",
         r.order,
@@ -125,7 +125,6 @@ pub fn curve_report_json(r: &CurveReport, spacing: NodeSpacing, output: Option<&
             .map(|f| f.map_or("null".into(), |f| format!("\"{}\"", f.name())))
             .collect::<Vec<_>>()
             .join(", "),
-        r.solves.residual.iter().map(|r| r.map_or("null".into(), |r| num(r.norm / r.rhs))).collect::<Vec<_>>().join(", "),
         num(t.total),
         num(t.elevate),
         num(t.project),

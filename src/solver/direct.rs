@@ -44,12 +44,11 @@ impl LinearSolver for DirectSolver {
                     iterations: 0,
                     solved_by: SolvedBy::DirectLu,
                     fallback: Some(FallbackReason::CholeskyFailed),
-                    residual: None,
                 })
             }
             r => {
                 r?;
-                Ok(SolveStats { iterations: 0, solved_by: SolvedBy::Direct, ..Default::default() })
+                Ok(SolveStats { iterations: 0, solved_by: SolvedBy::Direct, fallback: None })
             }
         }
     }

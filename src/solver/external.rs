@@ -258,7 +258,7 @@ impl LinearSolver for ExternalAdapter {
                 ),
             ));
         }
-        Ok(SolveStats { iterations: iterations.unwrap_or(0), solved_by: SolvedBy::External, ..Default::default() })
+        Ok(SolveStats { iterations: iterations.unwrap_or(0), solved_by: SolvedBy::External, fallback: None })
     }
 }
 

@@ -69,14 +69,10 @@
 
 use super::bsr::{BlockSym32, Operator};
 use super::lines::LineFactors;
-use super::pcg::{
-    axpby_in_place, dot, pcg, BlockJacobi, Converged, PcgFailure, PcgParams, SymmetricOperator, WithValues,
-};
+use super::pcg::{axpby_in_place, dot, pcg, BlockJacobi, PcgFailure, PcgParams, SymmetricOperator, WithValues};
 use super::pmg::{Chebyshev, ChebyshevParams, Hierarchy, VCycle};
 use super::SparseRows;
-use super::{
-    DirectSolver, FallbackReason, LinearSolver, NodeGroups, ProductSolve, Residual, SolveStats, SolvedBy, SymmetricCsc,
-};
+use super::{DirectSolver, FallbackReason, LinearSolver, NodeGroups, ProductSolve, SolveStats, SolvedBy, SymmetricCsc};
 use crate::{Error, Result, SolverFailure};
 
 /// Largest system the iterative solver hands to the direct one when PCG breaks
@@ -253,8 +249,6 @@ pub struct IterativeSolver {
     fresh_rate: Option<f64>,
     /// Seconds spent building preconditioners ([`LinearSolver::setup_seconds`]).
     setup_seconds: f64,
-    /// Residual the solves may leave above the tolerance ([`LinearSolver::carry_tolerance`]).
-    extra: f64,
 }
 
 impl IterativeSolver {
@@ -319,7 +313,6 @@ impl IterativeSolver {
             kept: None,
             fresh_rate: None,
             setup_seconds: 0.0,
-            extra: 0.0,
         })
     }
 
@@ -361,8 +354,7 @@ impl IterativeSolver {
     }
 
     /// The decimal digits by which PCG must reduce the residual of the start
-    /// `x`, log₁₀(‖b − A x‖ / (rtol ‖b‖)), with the widened rtol of
-    /// [`Self::pcg_params`]: at most 0 if `x` solves the system
+    /// `x`, log₁₀(‖b − A x‖ / (rtol ‖b‖)): at most 0 if `x` solves the system
     /// already; infinite for b = 0 (PCG's own case). With it, the residual
     /// b − A x when it took a product to find (a nonzero start), for PCG.
     fn digits_to_gain(
@@ -376,24 +368,14 @@ impl IterativeSolver {
         if b == 0.0 {
             return (f64::INFINITY, None);
         }
-        let allowed = self.pcg_params(b).rtol * b;
         if x.iter().all(|&v| v == 0.0) {
-            return ((b / allowed).log10(), None);
+            return ((b / (self.params.pcg.rtol * b)).log10(), None);
         }
         let mut r = vec![0.0; rhs.len()];
         self.op.with(pattern, values).matvec_into(x, &mut r);
         axpby_in_place(1.0, rhs, -1.0, &mut r);
         let norm = r.iter().map(|v| v * v).sum::<f64>().sqrt();
-        ((norm / allowed).log10(), Some(r))
-    }
-
-    /// PCG's parameters for a right-hand side of norm `b_norm` > 0: the
-    /// tolerance widened by what earlier solves passed on.
-    fn pcg_params(&self, b_norm: f64) -> PcgParams {
-        match b_norm > 0.0 {
-            true => PcgParams { rtol: self.params.pcg.rtol + self.extra / b_norm, ..self.params.pcg },
-            false => self.params.pcg,
-        }
+        ((norm / (self.params.pcg.rtol * b)).log10(), Some(r))
     }
 
     /// The iterations a solve with the kept smoother may take to gain
@@ -417,8 +399,7 @@ impl IterativeSolver {
         mode: Mode,
         budget: Option<usize>,
         residual: Option<Vec<f64>>,
-    ) -> std::result::Result<Converged, Breakdown> {
-        let params = self.pcg_params(dot(rhs, rhs).sqrt());
+    ) -> std::result::Result<usize, Breakdown> {
         let kept = self.kept.take().filter(|_| mode == Mode::Fast && budget.is_some());
         let reused = kept.is_some();
         let start = self.power.take();
@@ -453,13 +434,13 @@ impl IterativeSolver {
                     rhs,
                     x,
                     residual,
-                    params,
+                    self.params.pcg,
                     self.params.stagnation_window,
                     &mut |it| !checked || (eigenvalues(it) && Some(it) != budget),
                 )
             };
             if single {
-                single_then_checked(&exact, fine, rhs, x, residual, params.rtol, &mut pcg_with)
+                single_then_checked(&exact, fine, rhs, x, residual, self.params.pcg.rtol, &mut pcg_with)
             } else {
                 pcg_with(&exact, x, residual, true)
             }
@@ -468,7 +449,7 @@ impl IterativeSolver {
             // The kept smoother is too slow for this matrix: on from the
             // iterate with one built for it.
             self.set_aside(smoother, false);
-            return self.try_pcg_solve(pattern, values, rhs, x, mode, None, None).map(|c| c.after(spent)).map_err(
+            return self.try_pcg_solve(pattern, values, rhs, x, mode, None, None).map(|it| it + spent).map_err(
                 |mut b| {
                     b.iterations += spent;
                     b
@@ -477,8 +458,8 @@ impl IterativeSolver {
         }
         let estimate = smoother.estimate();
         let outcome = pcg_outcome(it, fresh, estimate);
-        if let (Ok(c), Mode::Fast) = (&outcome, mode) {
-            self.last_iterations = Some(c.iterations);
+        if let (Ok(it), Mode::Fast) = (&outcome, mode) {
+            self.last_iterations = Some(*it);
         }
         self.set_aside(smoother, outcome.is_ok() && mode == Mode::Fast);
         outcome
@@ -542,7 +523,7 @@ impl IterativeSolver {
 /// PCG with an operator, from `x` and its residual if known; `checked`:
 /// stoppable by the caller's check.
 type PcgWith<'a> =
-    dyn FnMut(&dyn Operator, &mut [f64], Option<Vec<f64>>, bool) -> std::result::Result<Converged, PcgFailure> + 'a;
+    dyn FnMut(&dyn Operator, &mut [f64], Option<Vec<f64>>, bool) -> std::result::Result<usize, PcgFailure> + 'a;
 
 /// PCG (`pcg_with(operator, x, start residual, checked)`) with the
 /// single-precision copy `single` as its operator, then the true residual of
@@ -563,16 +544,16 @@ fn single_then_checked(
     residual: Option<Vec<f64>>,
     rtol: f64,
     pcg_with: &mut PcgWith,
-) -> std::result::Result<Converged, PcgFailure> {
-    let first = pcg_with(single, x, residual, true)?.iterations;
+) -> std::result::Result<usize, PcgFailure> {
+    let first = pcg_with(single, x, residual, true)?;
     let mut r = vec![0.0; rhs.len()];
     exact.matvec_into(x, &mut r);
     axpby_in_place(1.0, rhs, -1.0, &mut r);
     let (r_norm, b_norm) = (dot(&r, &r).sqrt(), dot(rhs, rhs).sqrt());
     if r_norm <= rtol * b_norm {
-        return Ok(Converged { iterations: first, residual: r_norm });
+        return Ok(first);
     }
-    pcg_with(exact, x, Some(r), false).map(|c| c.after(first)).map_err(|f| f.after(first))
+    pcg_with(exact, x, Some(r), false).map(|it| first + it).map_err(|f| f.after(first))
 }
 
 /// The smoother's inverted diagonal blocks; one not positive definite makes the matrix indefinite.
@@ -640,10 +621,10 @@ fn eigenvalue_check<'a>(
 
 /// The iterations of a PCG run, or its breakdown (λ_max underestimated if stopped with `fresh`).
 fn pcg_outcome(
-    it: std::result::Result<Converged, PcgFailure>,
+    it: std::result::Result<usize, PcgFailure>,
     fresh: Option<f64>,
     estimate: f64,
-) -> std::result::Result<Converged, Breakdown> {
+) -> std::result::Result<usize, Breakdown> {
     match (it, fresh) {
         (Err(PcgFailure::Stopped { iteration }), Some(cold)) => Err(Breakdown {
             reason: FallbackReason::EigenvalueUnderestimated,
@@ -679,10 +660,6 @@ impl LinearSolver for IterativeSolver {
         self.setup_seconds
     }
 
-    fn carry_tolerance(&mut self, extra: f64) {
-        self.extra = extra.max(0.0);
-    }
-
     /// With the kept smoother and coarse levels of an earlier matrix (the
     /// fast mode), and its single-precision copy for the V-cycle.
     fn solves_by_products(&self) -> bool {
@@ -704,31 +681,22 @@ impl LinearSolver for IterativeSolver {
         rhs: &[f64],
         x: &mut [f64],
     ) -> Result<ProductSolve> {
+        let solved =
+            |iterations| ProductSolve::Solved(SolveStats { iterations, solved_by: SolvedBy::Pcg, fallback: None });
         if !self.solves_by_products() {
             return Ok(ProductSolve::NeedsMatrix { iterations: 0, breakdown: None });
         }
-        let b = dot(rhs, rhs).sqrt();
+        let b = rhs.iter().map(|v| v * v).sum::<f64>().sqrt();
         if b == 0.0 {
             x.fill(0.0);
-            return Ok(ProductSolve::Solved(SolveStats { solved_by: SolvedBy::Pcg, ..Default::default() }));
+            return Ok(solved(0));
         }
-        let params = self.pcg_params(b);
-        let solved = |c: Converged| {
-            let residual = Some(Residual { norm: c.residual, rhs: b, allowed: params.rtol * b });
-            ProductSolve::Solved(SolveStats {
-                iterations: c.iterations,
-                solved_by: SolvedBy::Pcg,
-                fallback: None,
-                residual,
-            })
-        };
         let mut r = vec![0.0; rhs.len()];
         apply(x, &mut r);
         axpby_in_place(1.0, rhs, -1.0, &mut r);
-        let r_norm = dot(&r, &r).sqrt();
-        let digits = (r_norm / (params.rtol * b)).log10();
+        let digits = (r.iter().map(|v| v * v).sum::<f64>().sqrt() / (self.params.pcg.rtol * b)).log10();
         if digits <= 0.0 {
-            return Ok(solved(Converged { iterations: 0, residual: r_norm }));
+            return Ok(solved(0));
         }
         let budget = self.reuse_budget(digits).expect("a smoother is kept");
         let x0 = x.to_vec();
@@ -742,16 +710,16 @@ impl LinearSolver for IterativeSolver {
                 rhs,
                 x,
                 Some(r),
-                params,
+                self.params.pcg,
                 self.params.stagnation_window,
                 &mut |it| it != budget,
             )
         };
         match it {
-            Ok(c) => {
-                self.last_iterations = Some(c.iterations);
+            Ok(it) => {
+                self.last_iterations = Some(it);
                 self.set_aside(smoother, true);
-                Ok(solved(c))
+                Ok(solved(it))
             }
             Err(PcgFailure::Stopped { iteration }) => {
                 self.set_aside(smoother, false);
@@ -770,26 +738,19 @@ impl LinearSolver for IterativeSolver {
         // A start that already meets the tolerance (a step retried from the
         // same matrix) needs no preconditioner.
         let (digits, residual) = self.digits_to_gain(pattern, values, rhs, x);
-        let b = dot(rhs, rhs).sqrt();
-        let allowed = self.pcg_params(b).rtol * b;
-        let stats = |c: Converged, solved_by, fallback| {
-            let residual = (b > 0.0).then_some(Residual { norm: c.residual, rhs: b, allowed });
-            SolveStats { iterations: c.iterations, solved_by, fallback, residual }
-        };
         if digits <= 0.0 {
-            let norm = residual.as_ref().map_or(b, |r| dot(r, r).sqrt());
-            return Ok(stats(Converged { iterations: 0, residual: norm }, SolvedBy::Pcg, None));
+            return Ok(SolveStats { iterations: 0, solved_by: SolvedBy::Pcg, fallback: None });
         }
         let x0 = x.to_vec();
         let mode = if self.params.safe_preconditioner { Mode::Safe } else { Mode::Fast };
         let budget = self.reuse_budget(digits);
         let first = match self.try_pcg_solve(pattern, values, rhs, x, mode, budget, residual) {
-            Ok(c) => {
+            Ok(iterations) => {
                 // A fresh smoother's rate: the yardstick of the kept one.
-                if budget.is_none() && digits.is_finite() && c.iterations > 0 {
-                    self.fresh_rate = Some(digits / c.iterations as f64);
+                if budget.is_none() && digits.is_finite() && iterations > 0 {
+                    self.fresh_rate = Some(digits / iterations as f64);
                 }
-                return Ok(stats(c, SolvedBy::Pcg, None));
+                return Ok(SolveStats { iterations, solved_by: SolvedBy::Pcg, fallback: None });
             }
             Err(Breakdown { error, .. }) if !matches!(error, Error::Solver { .. }) => return Err(error),
             Err(b) => b,
@@ -802,7 +763,9 @@ impl LinearSolver for IterativeSolver {
                 x.copy_from_slice(&x0);
             }
             match self.try_pcg_solve(pattern, values, rhs, x, Mode::Safe, None, None) {
-                Ok(c) => return Ok(stats(c.after(iterations), SolvedBy::PcgRestarted, fallback)),
+                Ok(it) => {
+                    return Ok(SolveStats { iterations: iterations + it, solved_by: SolvedBy::PcgRestarted, fallback })
+                }
                 Err(Breakdown { error, .. }) if !matches!(error, Error::Solver { .. }) => return Err(error),
                 Err(again) => {
                     iterations += again.iterations;
@@ -826,7 +789,7 @@ impl LinearSolver for IterativeSolver {
             self.direct = Some(DirectSolver::try_new(pattern)?);
         }
         let direct = self.direct.as_mut().expect("just set").solve(pattern, values, rhs, x)?;
-        Ok(SolveStats { iterations, solved_by: direct.solved_by, fallback, residual: None })
+        Ok(SolveStats { iterations, solved_by: direct.solved_by, fallback })
     }
 }
 
@@ -969,37 +932,6 @@ mod tests {
         assert!(relative_residual(&a, &v, &b, &xs) <= rtol);
         let (diff, norm) = xs.iter().zip(&xd).fold((0.0, 0.0), |(d, n), (p, q)| (d + (p - q) * (p - q), n + q * q));
         assert!((diff / norm).sqrt() < 1e-5, "solutions differ by {:.2e}", (diff / norm).sqrt());
-    }
-
-    /// A solve reports its residual as the matrix gives it; a carried
-    /// tolerance lets the next stop at up to that much more, and only the
-    /// next: the solver forgets it once set back to 0.
-    #[test]
-    fn a_carried_tolerance_widens_the_solves_that_follow_and_is_reported() {
-        let (a, v) = grid_laplacian(16, 3);
-        let b: Vec<f64> = (0..a.n).map(|i| (i as f64 * 0.3).cos()).collect();
-        let b_norm = b.iter().map(|x| x * x).sum::<f64>().sqrt();
-        let rtol = IterativeParams::default().pcg.rtol;
-        let mut solver = IterativeSolver::try_new(&a, 3, Vec::new(), IterativeParams::default()).unwrap();
-        let mut solve = |extra: f64| {
-            solver.carry_tolerance(extra);
-            let mut x = vec![0.0; a.n];
-            let stats = solver.solve(&a, &v, &b, &mut x).unwrap();
-            let r = stats.residual.expect("PCG measures its residual");
-            let true_norm = relative_residual(&a, &v, &b, &x) * b_norm;
-            assert!((r.norm - true_norm).abs() <= 1e-3 * r.norm, "{r:?} against ‖b − A x‖ = {true_norm:e}");
-            assert!((r.rhs - b_norm).abs() <= 1e-12 * b_norm);
-            assert!((r.allowed - (rtol * b_norm + extra)).abs() <= 1e-12 * r.allowed, "{r:?}");
-            assert!(r.norm <= r.allowed && (r.unused() - (r.allowed - r.norm)).abs() <= 1e-12 * r.allowed);
-            (stats.iterations, r)
-        };
-        let (own, r_own) = solve(0.0);
-        let extra = 30.0 * rtol * b_norm;
-        let (widened, r_widened) = solve(extra);
-        assert!(widened < own, "{widened} iterations with the carried tolerance, {own} without");
-        assert!(r_widened.norm > rtol * b_norm, "{r_widened:?}");
-        let (_, r_again) = solve(0.0);
-        assert_eq!(r_again.allowed, r_own.allowed, "the carried tolerance is not kept past a reset");
     }
 
     /// Below the copy's rounding (a tolerance of 1e-11), its solution fails

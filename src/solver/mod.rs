@@ -30,7 +30,7 @@ pub use direct::DirectSolver;
 pub use external::{CsrView, ExternalAdapter, ExternalSolver, FullCsrPattern, LowerCscView, SystemSolver};
 pub use iterative::{IterativeParams, IterativeSolver, FALLBACK_DIRECT_MAX_DOFS, REUSE_SLACK};
 pub use lu::try_lu_solve_in_place;
-pub use pcg::{Converged, PcgFailure, PcgParams};
+pub use pcg::{PcgFailure, PcgParams};
 pub use pmg::ChebyshevParams;
 
 use crate::{Error, Result};
@@ -45,29 +45,6 @@ pub struct SolveStats {
     pub solved_by: SolvedBy,
     /// Why the solver's first choice did not produce it (`None`: it did).
     pub fallback: Option<FallbackReason>,
-    /// The solution's residual against what the solve was allowed (None:
-    /// not measured, as by a direct solve).
-    pub residual: Option<Residual>,
-}
-
-/// How far a solution's residual ended below what its solve was allowed.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Residual {
-    /// ‖b − A x‖₂ of the solution.
-    pub norm: f64,
-    /// ‖b‖₂.
-    pub rhs: f64,
-    /// The largest ‖b − A x‖₂ the solve would have stopped at: its
-    /// tolerance times ‖b‖, plus what earlier solves passed on
-    /// ([`LinearSolver::carry_tolerance`]).
-    pub allowed: f64,
-}
-
-impl Residual {
-    /// The part of the allowed residual the solution did not use.
-    pub fn unused(&self) -> f64 {
-        (self.allowed - self.norm).max(0.0)
-    }
 }
 
 /// What the linear solves of a run did, one entry per solve in order.
@@ -82,8 +59,6 @@ pub struct SolveLog {
     pub solved_by: Vec<SolvedBy>,
     /// Per solve, why the first choice of solver did not produce it.
     pub fallback: Vec<Option<FallbackReason>>,
-    /// Per solve, its residual against what it was allowed (None: not measured).
-    pub residual: Vec<Option<Residual>>,
     /// Solves made from the cells' products alone, without assembling the
     /// matrix ([`LinearSolver::solve_by_products`]).
     pub by_products: usize,
@@ -98,7 +73,6 @@ impl SolveLog {
         self.iterations.push(stats.iterations);
         self.solved_by.push(stats.solved_by);
         self.fallback.push(stats.fallback);
-        self.residual.push(stats.residual);
     }
 
     /// Append the solves of `more`, made after these.
@@ -106,7 +80,6 @@ impl SolveLog {
         self.iterations.extend(more.iterations);
         self.solved_by.extend(more.solved_by);
         self.fallback.extend(more.fallback);
-        self.residual.extend(more.residual);
         self.by_products += more.by_products;
         self.assembled_after_products += more.assembled_after_products;
     }
@@ -212,12 +185,6 @@ pub trait LinearSolver {
     fn setup_seconds(&self) -> f64 {
         0.0
     }
-    /// Let the solves that follow stop at a residual ‖b − A x‖₂ up to
-    /// `extra` above their tolerance times ‖b‖ (0: at their tolerance). A
-    /// run whose solves' residuals count only as a sum, such as the
-    /// increments of one load, passes on what the earlier ones did not use
-    /// ([`Residual::unused`]). A solver without a tolerance ignores it.
-    fn carry_tolerance(&mut self, _extra: f64) {}
     /// Whether [`Self::solve_by_products`] may solve the next system
     /// without its matrix (with a preconditioner kept from an earlier one).
     fn solves_by_products(&self) -> bool {

@@ -566,26 +566,10 @@ pub fn try_pcg(
     x: &mut [f64],
     params: PcgParams,
 ) -> Result<usize> {
-    pcg(apply_a, apply_m, b, x, None, params, 0, &mut |_| true).map(|c| c.iterations).map_err(Error::from)
+    pcg(apply_a, apply_m, b, x, None, params, 0, &mut |_| true).map_err(Error::from)
 }
 
-/// A PCG run that met its tolerance.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Converged {
-    pub iterations: usize,
-    /// ‖b − A x‖₂ of the solution, from the recurrence (the start's
-    /// residual minus the steps' updates), which is what the tolerance tests.
-    pub residual: f64,
-}
-
-impl Converged {
-    /// This run counted after `spent` iterations of an earlier one.
-    pub fn after(self, spent: usize) -> Converged {
-        Converged { iterations: spent + self.iterations, ..self }
-    }
-}
-
-/// [`try_pcg`] with the solution's residual norm, the reason of a failure, and, unless `stagnation_window`
+/// [`try_pcg`] with the reason of a failure, and, unless `stagnation_window`
 /// is 0, a stop on stagnation: once 2·`stagnation_window` iterations have run,
 /// it stops when the smallest residual norm of the last `stagnation_window`
 /// iterations is not below [`STAGNATION_FACTOR`] times the smallest one before
@@ -606,12 +590,12 @@ pub fn pcg(
     params: PcgParams,
     stagnation_window: usize,
     check: &mut dyn FnMut(usize) -> bool,
-) -> std::result::Result<Converged, PcgFailure> {
+) -> std::result::Result<usize, PcgFailure> {
     let n = b.len();
     let b_norm = dot(b, b).sqrt();
     if b_norm == 0.0 {
         x.fill(0.0);
-        return Ok(Converged { iterations: 0, residual: 0.0 });
+        return Ok(0);
     }
     let target = params.rtol * b_norm;
     let mut r = residual.unwrap_or_else(|| {
@@ -623,7 +607,7 @@ pub fn pcg(
     assert_eq!(r.len(), n, "the start's residual has the wrong length");
     let mut r_norm = dot(&r, &r).sqrt();
     if r_norm <= target {
-        return Ok(Converged { iterations: 0, residual: r_norm });
+        return Ok(0);
     }
     let mut z = vec![0.0; n];
     apply_m(&r, &mut z).map_err(PcgFailure::Preconditioner)?;
@@ -650,7 +634,7 @@ pub fn pcg(
             return Err(PcgFailure::NonFinite { iteration: it });
         }
         if r_norm <= target {
-            return Ok(Converged { iterations: it, residual: r_norm });
+            return Ok(it);
         }
         if stagnation_window > 0 {
             let w = stagnation_window;
@@ -1195,7 +1179,7 @@ pub(crate) mod tests {
                 Ok(())
             };
             let mut x = start.clone();
-            let it = pcg(&mut apply_a, &mut identity, &b, &mut x, residual, params, 0, &mut |_| true).unwrap().iterations;
+            let it = pcg(&mut apply_a, &mut identity, &b, &mut x, residual, params, 0, &mut |_| true).unwrap();
             (it, products, x)
         };
         let (it, products, x) = run(None);
