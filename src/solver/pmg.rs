@@ -106,10 +106,11 @@ impl Transfer {
                 return values;
             }
         }
+        // Not on nodes: P was not p ⊗ I, or the coarse pattern or A is not in nodal blocks.
         if self.block == 1 {
-            return galerkin_product(a, &self.p, &self.pt, coarse);
+            return galerkin_entrywise(a, &self.p, &self.pt, coarse);
         }
-        galerkin_product(a, &kron_identity(&self.p, self.block), &kron_identity(&self.pt, self.block), coarse)
+        galerkin_entrywise(a, &kron_identity(&self.p, self.block), &kron_identity(&self.pt, self.block), coarse)
     }
 }
 
