@@ -50,6 +50,7 @@ type BlockRow<'a, const B: usize> = dyn Fn(usize, &mut dyn FnMut(usize, &[[f64; 
 /// sums with a ninth (a quarter) of the index work, about twice as fast
 /// (p = 4 → 2 on the sphere cavity of bench/compare_gmsh.sh: 0.14–0.19 s
 /// against 0.35–0.39 s); else entry by entry.
+#[cfg(any(test, feature = "internals"))]
 pub fn galerkin_product(a: WithValues, p: &SparseRows, pt: &SparseRows, coarse: &SymmetricCsc) -> Vec<f64> {
     let b = a.block();
     if let Some(pn) = nodal_prolongation(p, b).filter(|_| b > 1) {
