@@ -238,7 +238,9 @@ fn make_solver(
 /// then restored and the step halved, at most `max_splits` times per nominal
 /// increment (the full step comes back at the next nominal increment). The
 /// check after an increment is det J at the quadrature points of degree 2p
-/// (cheap: about 1–2 % of an increment at p = 4 in 3D), and the certified one
+/// (cheap: about 1–2 % of an increment at p = 4 in 3D; a cell that has moved
+/// too little since it was last evaluated to reach det J ≤ 0 there is
+/// skipped, [`quality::ValidityCheck::invalid_cells_screened`]), and the certified one
 /// (Bernstein bounds, det J > 0 everywhere) after the last increment and
 /// after every increment once the run has stepped back. If the certified
 /// check finds a cell that was already inverted before the increment, or an
@@ -667,6 +669,8 @@ struct IncrementContext<'a, K> {
     residual: bool,
     newton: Option<(f64, usize)>,
     check: Option<quality::ValidityCheck>,
+    /// What the sampled check keeps to skip the cells that barely moved.
+    margins: quality::SampledMargins,
     /// The other processes of a distributed stage.
     collective: Option<Arc<dyn Collective>>,
 }
@@ -695,6 +699,7 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
             residual: stepping.residual || stepping.newton.is_some(),
             newton: stepping.newton,
             check,
+            margins: quality::SampledMargins::default(),
             collective: match &stepping.parallel {
                 Parallel::Part(c) => Some(c.clone()),
                 _ => None,
@@ -902,7 +907,7 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
     /// the geometry `saved` it started from: Err(Retry) when it made a cell
     /// invalid, Ok(Some(c)) when cell c was already invalid at its start.
     fn check_cells(
-        &self,
+        &mut self,
         mesh: &HighOrderMesh,
         saved: &[f64],
         certified: bool,
@@ -919,7 +924,9 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
         out.certified = certified.then(|| check.certify_cells(&mesh.coords, &mesh.cells));
         let invalid: Vec<usize> = match &out.certified {
             Some(cells) => (0..cells.len()).filter(|&c| cells[c].verdict == quality::Verdict::Invalid).collect(),
-            None => check.invalid_cells(&mesh.coords, &mesh.cells, certified),
+            // Sampled: the cells that moved too little since they were last
+            // evaluated to have met det J ≤ 0 are skipped, with the same result.
+            None => check.invalid_cells_screened(&mesh.coords, &mesh.cells, &mut self.margins).0,
         };
         for c in invalid {
             if check.cell_is_invalid(saved, mesh.cell(c), certified) {

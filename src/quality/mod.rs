@@ -425,13 +425,132 @@ pub struct ValidityCheck {
     basis: LagrangeBasis,
     certified: JacobianBernstein,
     points: ElementCache,
+    /// Per basis function N_a, the largest |∇_ξ N_a| at the sample points.
+    gradient_bounds: Vec<f64>,
+}
+
+/// A sampled margin below this fraction of the cell's largest ‖J‖_F at the
+/// sample points is dropped: such a cell is always evaluated
+/// ([`SampledMargins`]). A skipped cell then has σ_min(J) ≥ margin/2 ≥
+/// ‖J‖₂ · MARGIN_FLOOR/3 at every sample point (‖J‖₂ grew by at most β), so
+/// det J ≥ σ_min³ ≥ 3.7e-11 ‖J‖₂³, far above the round-off of its
+/// computation (about 10 ε ‖J‖₂³ = 2.2e-15 ‖J‖₂³): the full check would find
+/// it positive too.
+const MARGIN_FLOOR: f64 = 1e-3;
+
+/// What the sampled check keeps between calls to skip the cells that have
+/// barely moved ([`ValidityCheck::invalid_cells_screened`]): per cell, its
+/// node coordinates when last evaluated (its anchor) and a lower bound of
+/// the smallest singular value of J = ∂x/∂ξ at the sample points there
+/// (its margin; 0 until evaluated, or when invalid).
+#[derive(Debug, Clone, Default)]
+pub struct SampledMargins {
+    anchors: Vec<f64>,
+    margins: Vec<f64>,
 }
 
 impl ValidityCheck {
     pub fn new(basis: LagrangeBasis) -> ValidityCheck {
         let certified = JacobianBernstein::new(&basis);
         let points = ElementCache::new(&basis, &simplex_rule(basis.simplex(), 2 * basis.order()));
-        ValidityCheck { basis, certified, points }
+        let (n, d) = (points.n_basis, points.dim);
+        let gradient_bounds = (0..n)
+            .map(|a| {
+                (0..points.n_points())
+                    .map(|q| points.ref_grads[(q * n + a) * d..][..d].iter().map(|g| g * g).sum::<f64>().sqrt())
+                    .fold(0.0, f64::max)
+            })
+            .collect();
+        ValidityCheck { basis, certified, points, gradient_bounds }
+    }
+
+    /// Whether the cell with node coordinates `xe` is invalid at the sample
+    /// points, as [`Self::sampled_invalid`] finds, and its margin
+    /// ([`SampledMargins`]), from its Jacobians there (into `jac`):
+    /// |det J| / ‖cof J‖_F in 3D (the largest singular value of cof J is
+    /// σ₁σ₂) and |det J| / ‖J‖_F in 2D, at the worst point; 0 when the cell
+    /// is invalid or that is below [`MARGIN_FLOOR`] times the largest ‖J‖_F.
+    fn sampled_with_margin<const D: usize>(&self, xe: &[f64], jac: &mut Vec<f64>) -> (bool, f64) {
+        let nq = self.points.n_points();
+        crate::linalg::with_avx2(
+            #[inline(always)]
+            || self.points.by_point.jacobians_into::<D>(xe, jac),
+        );
+        let frobenius = |m: &linalg::Mat3| m.iter().flatten().map(|v| v * v).sum::<f64>().sqrt();
+        let (mut margin, mut largest) = (f64::INFINITY, 0.0f64);
+        for q in 0..nq {
+            let j = mapping::jacobian_at::<D>(jac, nq, q);
+            let det = linalg::det(D, &j);
+            if det.is_nan() || det <= 0.0 {
+                return (true, 0.0);
+            }
+            let size = frobenius(&j);
+            let product = if D == 2 { size } else { frobenius(&linalg::cofactor(3, &j)) };
+            margin = margin.min(det / product);
+            largest = largest.max(size);
+        }
+        // Also 0 for a NaN margin.
+        (false, if margin > MARGIN_FLOOR * largest { margin } else { 0.0 })
+    }
+
+    /// The sampled [`Self::invalid_cells`] (the same cells), skipping those
+    /// that `margins` prove valid, and taking the margins of the others on
+    /// `coords`; also returns how many cells were skipped.
+    ///
+    /// With d_a the displacement of a cell's node a from the cell's anchor
+    /// less the mean of its nodes' (the gradients sum to zero),
+    /// J − J_anchor = Σ_a d_a ∇N_aᵀ at each sample point, so
+    /// ‖J − J_anchor‖₂ ≤ β = Σ_a |d_a| max |∇N_a|, and σ_min(J) ≥ margin − β
+    /// (Weyl). A margin above 2β keeps J non-singular all the way from the
+    /// anchor, so det J stays positive at every sample point, and well above
+    /// round-off.
+    pub fn invalid_cells_screened(
+        &self,
+        coords: &[f64],
+        cells: &[usize],
+        margins: &mut SampledMargins,
+    ) -> (Vec<usize>, usize) {
+        let (npc, dim) = (self.basis.len(), self.basis.simplex().dim());
+        margins.margins.resize(cells.len() / npc, 0.0);
+        margins.anchors.resize(cells.len() * dim, 0.0);
+        let found: Vec<(Option<usize>, bool)> = cells
+            .par_chunks_exact(npc)
+            .zip(margins.anchors.par_chunks_exact_mut(npc * dim))
+            .zip(margins.margins.par_iter_mut())
+            .enumerate()
+            .map_init(Vec::new, |jac, (c, ((cell, anchor), margin))| {
+                if *margin > 2.0 * self.displacement_bound(coords, anchor, cell, dim) {
+                    return (None, true);
+                }
+                gather_into(coords, cell, dim, anchor);
+                let invalid;
+                (invalid, *margin) = match dim {
+                    2 => self.sampled_with_margin::<2>(anchor, jac),
+                    _ => self.sampled_with_margin::<3>(anchor, jac),
+                };
+                (invalid.then_some(c), false)
+            })
+            .collect();
+        let skipped = found.iter().filter(|(_, s)| *s).count();
+        (found.into_iter().filter_map(|(c, _)| c).collect(), skipped)
+    }
+
+    /// β of [`Self::invalid_cells_screened`] for the cell with nodes `cell`
+    /// and anchor coordinates `anchor`.
+    fn displacement_bound(&self, coords: &[f64], anchor: &[f64], cell: &[usize], dim: usize) -> f64 {
+        let moved = |a: usize, n: usize, i: usize| coords[n * dim + i] - anchor[a * dim + i];
+        let mut mean = [0.0; 3];
+        for (a, &n) in cell.iter().enumerate() {
+            for (i, m) in mean.iter_mut().enumerate().take(dim) {
+                *m += moved(a, n, i);
+            }
+        }
+        mean.iter_mut().for_each(|m| *m /= cell.len() as f64);
+        cell.iter()
+            .enumerate()
+            .zip(&self.gradient_bounds)
+            .map(|((a, &n), g)| g * (0..dim).map(|i| (moved(a, n, i) - mean[i]).powi(2)).sum::<f64>().sqrt())
+            .sum()
     }
 
     /// Whether the element with node coordinates `xe` is invalid.
@@ -638,6 +757,118 @@ mod tests {
         }
         // Both verdicts were met.
         assert!(valid > 20 && invalid > 20, "{valid} valid, {invalid} invalid");
+    }
+
+    /// The smallest singular value of the leading `dim` block of `j`, by
+    /// inverse power iteration on JᵀJ.
+    fn smallest_singular_value(dim: usize, j: &linalg::Mat3) -> f64 {
+        let mut jtj = [[0.0; 3]; 3];
+        for a in 0..dim {
+            for b in 0..dim {
+                jtj[a][b] = (0..dim).map(|k| j[k][a] * j[k][b]).sum();
+            }
+        }
+        let (inv, _) = linalg::inverse(dim, &jtj);
+        let mut v = [1.0, 0.7, 0.4];
+        let mut largest = 0.0;
+        for _ in 0..2000 {
+            let w: Vec<f64> = (0..dim).map(|a| (0..dim).map(|b| inv[a][b] * v[b]).sum()).collect();
+            largest = (0..dim).map(|a| w[a] * w[a]).sum::<f64>().sqrt();
+            for a in 0..dim {
+                v[a] = w[a] / largest;
+            }
+        }
+        (1.0 / largest).sqrt()
+    }
+
+    #[test]
+    fn a_sampled_margin_lies_between_the_smallest_singular_value_over_root_d_and_it() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for simplex in [Simplex::Tri, Simplex::Tet] {
+            for p in 1..=4 {
+                let nodes = NodeSet::new(simplex, p, NodeSpacing::Optimal);
+                let check = ValidityCheck::new(LagrangeBasis::new(&nodes));
+                let dim = simplex.dim();
+                let xs: Vec<f64> = nodes.coords.iter().flat_map(|c| c[..dim].to_vec()).collect();
+                let cells: Vec<usize> = (0..xs.len() / dim).collect();
+                for (amplitude, stretch) in [(0.0, 1.0), (0.03, 1.0), (0.05, 0.01), (0.05, 3.0)] {
+                    let xe: Vec<f64> = xs
+                        .iter()
+                        .enumerate()
+                        .map(|(k, x)| if k % dim == 0 { stretch } else { 1.0 } * (x + amplitude * next()))
+                        .collect();
+                    let mut margins = SampledMargins::default();
+                    assert_eq!(check.invalid_cells_screened(&xe, &cells, &mut margins), (vec![], 0));
+                    let margin = margins.margins[0];
+                    let smallest = (0..check.points.n_points())
+                        .map(|q| smallest_singular_value(dim, &mapping::jacobian(dim, &xe, check.points.grads_at(q))))
+                        .fold(f64::INFINITY, f64::min);
+                    assert!(margin > 0.0, "{simplex:?} p={p} amplitude {amplitude}");
+                    assert!(margin <= smallest * (1.0 + 1e-9), "{simplex:?} p={p}: {margin} > {smallest}");
+                    assert!(
+                        margin >= smallest / (dim as f64).sqrt() * (1.0 - 1e-9),
+                        "{simplex:?} p={p}: {margin} vs {smallest}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_screened_sampled_check_finds_the_cells_of_the_full_one_and_skips_the_barely_moved() {
+        let mut seed = 0xda94_2042_e4dd_58b5u64;
+        let mut next = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for simplex in [Simplex::Tri, Simplex::Tet] {
+            for p in 1..=4 {
+                let nodes = NodeSet::new(simplex, p, NodeSpacing::Optimal);
+                let check = ValidityCheck::new(LagrangeBasis::new(&nodes));
+                let dim = simplex.dim();
+                let npc = nodes.coords.len();
+                // Disjoint cells, each a perturbed copy of the reference one
+                // moved by its own amplitude; -1: translated, -2: mirrored.
+                let amplitudes = [0.0, 1e-4, 1e-3, 1e-2, 0.1, 0.3, 0.8, 1.5, -1.0, -2.0];
+                let mut anchor = Vec::new();
+                let mut coords = Vec::new();
+                for (c, &amplitude) in amplitudes.iter().cycle().take(4 * amplitudes.len()).enumerate() {
+                    let scale = [1.0, 0.1, 2.0, 0.5][c % 4];
+                    for (k, x) in nodes.coords.iter().flat_map(|x| x[..dim].to_vec()).enumerate() {
+                        let a = scale * x + 0.03 * scale * next();
+                        anchor.push(a);
+                        coords.push(match amplitude {
+                            -1.0 => a + 10.0,
+                            -2.0 if k % dim == 0 => -a,
+                            -2.0 => a,
+                            _ => a + amplitude * scale * next(),
+                        });
+                    }
+                }
+                let cells: Vec<usize> = (0..anchor.len() / dim).collect();
+                let n_cells = cells.len() / npc;
+                // The first call evaluates every cell and anchors it.
+                let mut margins = SampledMargins::default();
+                assert_eq!(check.invalid_cells_screened(&anchor, &cells, &mut margins), (vec![], 0));
+                assert!(margins.margins.iter().all(|&m| m > 0.0), "{simplex:?} p={p}: {margins:?}");
+                let (screened, skipped) = check.invalid_cells_screened(&coords, &cells, &mut margins);
+                let full = check.invalid_cells(&coords, &cells, false);
+                assert_eq!(screened, full, "{simplex:?} p={p}");
+                assert!(!full.is_empty(), "{simplex:?} p={p}: no cell inverted");
+                // The unmoved, the translated and the least moved cells at
+                // least; never an inverted one, nor the most moved.
+                assert!(skipped >= 3 * 4 && skipped < n_cells - full.len(), "{simplex:?} p={p}: {skipped} skipped");
+                // The cells evaluated were anchored where they are now: on
+                // the same geometry, only the invalid ones are evaluated again.
+                let (again, skipped) = check.invalid_cells_screened(&coords, &cells, &mut margins);
+                assert_eq!(again, full, "{simplex:?} p={p}");
+                assert_eq!(skipped, n_cells - full.len(), "{simplex:?} p={p}");
+            }
+        }
     }
 
     fn p2_triangle(delta: f64) -> (ElementCache, Vec<f64>) {
