@@ -21,6 +21,7 @@ use std::sync::Arc;
 /// the points, and K_II (the cell matrix's block at its interior dofs; with
 /// W, K_BI = Wᵀ K_II); and where the cells' values go, which the geometry
 /// does not change. All in the layout's order of the cells.
+#[derive(Debug, Clone)]
 pub struct CellOperator {
     /// J⁻¹ and w det J by groups of [`CELL_LANES`] cells, each group's values
     /// lane by lane as [`LinearElasticKernel::apply4`] reads them (zeros
@@ -112,8 +113,15 @@ impl System {
         // slices in step.
         let (stride, kii_stride) = ((ni * (nb + 1)).max(1), (ni * ni).max(1));
         let groups = mesh.n_cells().div_ceil(CELL_LANES);
-        let mut factors = vec![0.0; per_cell * CELL_LANES * groups];
-        let mut kii = vec![0.0; kii_stride * mesh.n_cells()];
+        // The buffers of an earlier operator of this system when given back
+        // ([`Self::recycle`]): every value the build writes is written
+        // again, and the lanes past the last cell, never written, stay zero.
+        let (mut factors, mut kii) = match self.spare_operator.take() {
+            Some(op) if op.factors.len() == per_cell * CELL_LANES * groups && op.kii.len() == kii_stride * mesh.n_cells() => {
+                (op.factors, op.kii)
+            }
+            _ => (vec![0.0; per_cell * CELL_LANES * groups], vec![0.0; kii_stride * mesh.n_cells()]),
+        };
         let mut none = Vec::new();
         let keep = interior.as_mut().map_or(&mut none, |r| &mut r.keep);
         keep.clear();
@@ -152,6 +160,13 @@ impl System {
         }
         self.interior = interior;
         Ok(CellOperator { factors, kii, per_cell, n_cells: mesh.n_cells(), layout })
+    }
+
+    /// Keep `op`'s buffers for the next [`Self::cell_operator`], which then
+    /// neither allocates nor zeroes them (about 10 MB on the torus cavity
+    /// of bench/compare_gmsh.sh).
+    pub fn recycle(&mut self, op: CellOperator) {
+        self.spare_operator = Some(op);
     }
 
     /// A cell's interior dofs and the others (all of its `nd` without condensation).
@@ -444,7 +459,8 @@ mod tests {
     /// The products without the matrix match the assembled matrix's, and
     /// the right-hand side and interior recovery match the assembly's, on a
     /// curved mesh in 2D and 3D, with and without condensation; and again
-    /// on a second geometry, with the layout kept from the first.
+    /// on a second geometry, with the layout and the buffers kept from the
+    /// first.
     #[test]
     fn products_by_cells_match_the_assembled_system() {
         // 63, 576 and 861 cells: remainders 3, 0 and 1 in the groups of four
@@ -510,6 +526,8 @@ mod tests {
                 close(&minus, &rhs, "right-hand side");
                 // (the assembly's g = K_II⁻¹ f_I is zero without a residual, as is the cells')
                 close(&recovered(system), &interior, "interior recovery");
+                // The second geometry's operator is built in these buffers.
+                system.recycle(op);
             }
         }
     }

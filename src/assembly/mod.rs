@@ -653,6 +653,8 @@ pub struct System {
     interior_sq: Vec<f64>,
     /// Where the cells' values go in products from the cells, once found.
     cell_layout: Option<std::sync::Arc<matrix_free::CellLayout>>,
+    /// The buffers of the last cell operator handed back, for the next.
+    spare_operator: Option<matrix_free::CellOperator>,
 }
 
 impl System {
@@ -677,6 +679,7 @@ impl System {
             full_rhs: Vec::new(),
             interior_sq: Vec::new(),
             cell_layout: None,
+            spare_operator: None,
         };
         (system, nodes)
     }

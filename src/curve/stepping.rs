@@ -781,19 +781,21 @@ impl<'a, K: ElementKernel> IncrementContext<'a, K> {
         let mut apply = |v: &[f64], y: &mut [f64]| system.apply_cells(&op, mesh, kernel, Some(v), None, y);
         let outcome = self.solver.solve_by_products(&mut apply, &rhs, &mut bufs.u[..n]).map_err(Failure::Fatal)?;
         timings.solve += t.elapsed().as_secs_f64();
-        match outcome {
+        let result = match outcome {
             ProductSolve::Solved(stats) => {
                 out.solves.record(&stats);
                 out.solves.by_products += 1;
                 system.recover_interior(mesh, &bufs.step, &mut bufs.u);
                 system.dofs().add_to(&mut mesh.coords, &bufs.u, Some(&bufs.step));
-                Ok(Ok(r0))
+                Ok(r0)
             }
             ProductSolve::NeedsMatrix { iterations, breakdown } => {
                 out.solves.assembled_after_products += 1;
-                Ok(Err(Spent { iterations, breakdown }))
+                Err(Spent { iterations, breakdown })
             }
-        }
+        };
+        self.system.recycle(op);
+        Ok(result)
     }
 
     /// A failed assembly as a rejection of the increment, the same on every
