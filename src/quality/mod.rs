@@ -666,6 +666,14 @@ mod tests {
     use super::*;
     use crate::reference::{LagrangeBasis, NodeSet, NodeSpacing, Simplex};
 
+    /// Uniform numbers in [-0.5, 0.5) from `seed` (a 64-bit LCG's top 53 bits).
+    fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        }
+    }
+
     /// [`element_quality`] as it was computed point by point, ∂x/∂ξ from
     /// [`mapping::jacobian`] at each point.
     fn quality_point_by_point(
@@ -689,11 +697,7 @@ mod tests {
     #[test]
     fn the_jacobians_summed_in_lanes_give_bitwise_the_quality_of_the_point_by_point_ones() {
         let bits = |q: ElementQuality| [q.q1, q.q2, q.q3, q.q4, q.q5].map(f64::to_bits);
-        let mut seed = 0x853c_49e6_748f_ea9bu64;
-        let mut next = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut next = uniform(0x853c_49e6_748f_ea9bu64);
         for simplex in [Simplex::Tri, Simplex::Tet] {
             // Sample points 9 + 3 .. 343 + 286: every remainder of the chunks of 8 and more.
             for p in 1..=5 {
@@ -720,11 +724,7 @@ mod tests {
 
     #[test]
     fn the_sampled_check_finds_what_det_j_point_by_point_finds() {
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut next = uniform(0x2545_f491_4f6c_dd1du64);
         let (mut valid, mut invalid) = (0, 0);
         for simplex in [Simplex::Tri, Simplex::Tet] {
             for p in 1..=5 {
@@ -783,11 +783,7 @@ mod tests {
 
     #[test]
     fn a_sampled_margin_lies_between_the_smallest_singular_value_over_root_d_and_it() {
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut next = uniform(0x9e37_79b9_7f4a_7c15u64);
         for simplex in [Simplex::Tri, Simplex::Tet] {
             for p in 1..=4 {
                 let nodes = NodeSet::new(simplex, p, NodeSpacing::Optimal);
@@ -820,11 +816,7 @@ mod tests {
 
     #[test]
     fn the_screened_sampled_check_finds_the_cells_of_the_full_one_and_skips_the_barely_moved() {
-        let mut seed = 0xda94_2042_e4dd_58b5u64;
-        let mut next = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut next = uniform(0xda94_2042_e4dd_58b5u64);
         for simplex in [Simplex::Tri, Simplex::Tet] {
             for p in 1..=4 {
                 let nodes = NodeSet::new(simplex, p, NodeSpacing::Optimal);
